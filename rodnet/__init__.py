@@ -1,0 +1,12 @@
+"""rodnet: tether-net simulation with Cosserat rod elements and a lumped-parameter reference."""
+
+from rodnet.config import Scene as Scene
+from rodnet.errors import SceneError as SceneError
+from rodnet.errors import SimulationFailed as SimulationFailed
+from rodnet.run import RunResult as RunResult
+from rodnet.run import prepare as prepare
+from rodnet.run import run as run
+from rodnet.scene import load_scene as load_scene
+from rodnet.scene import scene_from_toml as scene_from_toml
+
+__version__ = "0.1.0"

@@ -1,0 +1,5 @@
+"""``python -m rodnet`` is the ``rodnet`` command."""
+
+from rodnet.cli import main
+
+raise SystemExit(main())

@@ -1,0 +1,73 @@
+"""The ``rodnet`` command: ``run`` a scene file, ``demo`` the reference deployment."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from importlib import resources
+from pathlib import Path
+
+EXIT_BAD_INPUT, EXIT_FAILED, EXIT_INTERRUPTED = 2, 1, 130
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="rodnet", description=(
+        "Tether-net simulation: Cosserat rod threads and a lumped-parameter reference."))
+    sub = parser.add_subparsers(dest="command", required=True)
+    run = sub.add_parser("run", help="run a scene file")
+    run.add_argument("scene", type=Path, help="scene TOML file")
+    demo = sub.add_parser("demo", help="run the built-in reference deployment")
+    for p in (run, demo):
+        p.add_argument("-o", "--output", type=Path, default=None,
+                       help="output directory (default: the scene's output.directory)")
+        p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                       help="override a scene key, e.g. --set simulation.dt=5e-4 (repeatable)")
+        p.add_argument("--quiet", action="store_true", help="no progress line")
+    return parser
+
+
+def demo_scene_text() -> str:
+    """TOML text of the built-in reference deployment."""
+    return resources.files("rodnet.data").joinpath("deploy_reference.toml").read_text()
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point; returns the exit status (0 ok, 1 failed run, 2 bad input, 130 interrupted)."""
+    args = _parser().parse_args(argv)
+    from rodnet.errors import SceneError
+    from rodnet.scene import load_scene, scene_from_toml
+
+    try:
+        if args.command == "demo":
+            scene = scene_from_toml(demo_scene_text(), args.overrides, source="rodnet demo")
+        else:
+            scene = load_scene(args.scene, args.overrides)
+        from rodnet.run import run
+
+        result = run(scene, args.output, progress=False if args.quiet else None)
+    except SceneError as exc:
+        print(f"rodnet: bad input: {exc}. Nothing was run and no output was written.", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    warnings = []
+    if result.status == "ok" and (scene.output.picture or scene.output.plot) and "mouth_area" in result.arrays:
+        from rodnet.viz.figures import render_in_subprocess
+
+        warnings = render_in_subprocess(result.directory, scene.output.picture, scene.output.plot)
+    for w in warnings:
+        print(f"rodnet: warning: {w}", file=sys.stderr)
+    _report(result)
+    if result.status != "ok":
+        return EXIT_INTERRUPTED if "interrupted" in result.message else EXIT_FAILED
+    return 0
+
+
+def _report(result) -> None:  # type: ignore[no-untyped-def]
+    s = result.summary
+    if result.status != "ok":
+        print(f"rodnet: the run failed: {result.message}. The {s['frames']} frames computed up to "
+              f"t = {s['simulated_time_s']:.4g} s are in {result.directory}/.", file=sys.stderr)
+        return
+    print(f"rodnet: done in {s['wall_time_s']:.2f} s wall, {s['steps']} steps; results in "
+          f"{result.directory}/")
+    for key, value in s["metrics"].items():
+        print(f"  {key:28s} {value:.6g}")

@@ -1,0 +1,318 @@
+"""Scene configuration: frozen, validated dataclasses, one per TOML section.
+
+Every class checks its own values in ``__post_init__`` and raises :class:`SceneError` naming the
+key, the value and what is allowed; :mod:`rodnet.scene` adds the section path in front of the key.
+The keys and their meaning are the public contract of ``SCENE_FORMAT.md``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+from rodnet.errors import SceneError
+
+Vec3 = tuple[float, float, float]
+
+
+def require(ok: bool, key: str, value: Any, allowed: str) -> None:
+    """Raise :class:`SceneError` for ``key`` unless ``ok``."""
+    if not ok:
+        raise SceneError(key, value, allowed)
+
+
+def _positive(obj: Any, *keys: str) -> None:
+    for key in keys:
+        value = getattr(obj, key)
+        if value is not None:
+            require(math.isfinite(value) and value > 0, key, value, "must be a finite number > 0")
+
+
+def _non_negative(obj: Any, *keys: str) -> None:
+    for key in keys:
+        value = getattr(obj, key)
+        require(math.isfinite(value) and value >= 0, key, value, "must be a finite number >= 0")
+
+
+def _finite_vector(obj: Any, *keys: str) -> None:
+    for key in keys:
+        value = getattr(obj, key)
+        require(all(math.isfinite(c) for c in value), key, value, "must hold finite numbers")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class SimulationSpec:
+    """``[simulation]``: what kind of run and how it is stepped."""
+
+    type: Literal["dynamic", "static"] = "dynamic"
+    duration: float = 3.0
+    dt: float = 1.0e-3
+    adaptive: bool = True
+    integrator: Literal["generalized-alpha", "backward-euler", "explicit", "rk45"] | None = None
+    rho_inf: float = 0.7
+    gravity: Vec3 = (0.0, 0.0, 0.0)
+    load_steps: int = 10
+    explicit_safety: float = 0.5
+    rtol: float = 1.0e-6
+
+    def __post_init__(self) -> None:
+        _positive(self, "duration", "dt", "rtol")
+        require(0.0 <= self.rho_inf <= 1.0, "rho_inf", self.rho_inf, "must be in [0, 1]")
+        require(self.load_steps >= 1, "load_steps", self.load_steps, "must be an integer >= 1")
+        require(0.0 < self.explicit_safety <= 1.0, "explicit_safety", self.explicit_safety,
+                "must be in (0, 1]: the fraction of the explicit stability limit used as step")
+        require(self.rtol < 1.0, "rtol", self.rtol, "must be < 1 (a relative tolerance)")
+        _finite_vector(self, "gravity")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ModelSpec:
+    """``[model]``: which mechanical model represents the threads."""
+
+    type: Literal["cosserat", "lumped"] = "cosserat"
+    elements_per_thread: int = 4
+    bending: bool = True
+    torsion: bool = True
+    axial: Literal["tension-only", "linear"] = "tension-only"
+    knots: Literal["rigid", "pinned"] = "rigid"
+    kink_strain: float = 1.0e-6
+
+    def __post_init__(self) -> None:
+        require(self.elements_per_thread >= 1, "elements_per_thread", self.elements_per_thread,
+                "must be an integer >= 1")
+        require(0.0 <= self.kink_strain < 1e-2, "kink_strain", self.kink_strain,
+                "must be in [0, 0.01): the strain over which the tension-only law is smoothed")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class MaterialSpec:
+    """``[[materials]]``: a thread or rod material and its (optionally overridden) section."""
+
+    name: str
+    density: float
+    youngs_modulus: float
+    diameter: float
+    poisson_ratio: float | None = None
+    shear_modulus: float | None = None
+    viscosity: float = 0.0
+    axial_stiffness: float | None = None
+    shear_stiffness: float | None = None
+    bending_stiffness: float | None = None
+    torsional_stiffness: float | None = None
+    mass_per_length: float | None = None
+    rotary_inertia_per_length: float | None = None
+
+    def __post_init__(self) -> None:
+        _positive(self, "density", "youngs_modulus", "diameter", "shear_modulus",
+                  "axial_stiffness", "shear_stiffness", "bending_stiffness",
+                  "torsional_stiffness", "mass_per_length", "rotary_inertia_per_length")
+        _non_negative(self, "viscosity")
+        require(self.name != "", "name", self.name, "must be a non-empty string")
+        if self.poisson_ratio is not None:
+            require(-1.0 < self.poisson_ratio < 0.5, "poisson_ratio", self.poisson_ratio,
+                    "must be in (-1, 0.5)")
+            require(self.shear_modulus is None, "shear_modulus", self.shear_modulus,
+                    "give either poisson_ratio or shear_modulus, not both")
+
+    @property
+    def area(self) -> float:
+        """Cross-section area A = pi d^2 / 4 [m^2] of the solid circular section."""
+        return math.pi * self.diameter**2 / 4.0
+
+    @property
+    def second_moment(self) -> float:
+        """Second moment of area I = pi d^4 / 64 [m^4] of the solid circular section."""
+        return math.pi * self.diameter**4 / 64.0
+
+    @property
+    def shear_modulus_value(self) -> float:
+        """G [Pa]: given, or E / (2 (1 + nu)); nu = 0.3 when neither is given."""
+        if self.shear_modulus is not None:
+            return self.shear_modulus
+        nu = 0.3 if self.poisson_ratio is None else self.poisson_ratio
+        return self.youngs_modulus / (2.0 * (1.0 + nu))
+
+    @property
+    def EA(self) -> float:
+        """Axial stiffness [N]."""
+        return self.axial_stiffness or self.youngs_modulus * self.area
+
+    @property
+    def GA(self) -> float:
+        """Shear stiffness [N], with the circular-section shear factor 6(1+nu)/(7+6nu)."""
+        if self.shear_stiffness is not None:
+            return self.shear_stiffness
+        nu = self.youngs_modulus / (2.0 * self.shear_modulus_value) - 1.0
+        return 6.0 * (1.0 + nu) / (7.0 + 6.0 * nu) * self.shear_modulus_value * self.area
+
+    @property
+    def EI(self) -> float:
+        """Bending stiffness [N m^2]."""
+        return self.bending_stiffness or self.youngs_modulus * self.second_moment
+
+    @property
+    def GJ(self) -> float:
+        """Torsional stiffness [N m^2] (J = 2 I for the solid circular section)."""
+        return self.torsional_stiffness or self.shear_modulus_value * 2.0 * self.second_moment
+
+    @property
+    def rhoA(self) -> float:
+        """Mass per length [kg/m]."""
+        return self.mass_per_length or self.density * self.area
+
+    @property
+    def rhoI(self) -> float:
+        """Rotary inertia per length about a bending axis, rho I [kg m]."""
+        return self.rotary_inertia_per_length or self.density * self.second_moment
+
+    @property
+    def damping_coefficient(self) -> float:
+        """Axial Kelvin-Voigt coefficient eta A [N s]: a segment of rest length l0 has c = eta A / l0."""
+        return self.viscosity * self.area
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class NetSpec:
+    """``[net]``: the square net, its packed initial state and the launch of its corner masses."""
+
+    material: str
+    layout: Literal["square"] = "square"
+    nodes_per_side: int = 21
+    mesh_length: float = 1.0
+    center: Vec3 = (0.0, 0.0, 0.0)
+    direction: Vec3 = (0.0, 0.0, 1.0)
+    packing: float = 0.1
+    knot_mass: float = 0.0
+    corner_mass: float = 1.0
+    corner_thread_length: float = 1.0
+    launch_speed: float = 20.0
+    launch_angle_deg: float = 45.0
+
+    def __post_init__(self) -> None:
+        require(self.nodes_per_side >= 2, "nodes_per_side", self.nodes_per_side,
+                "must be an integer >= 2")
+        _positive(self, "mesh_length", "corner_thread_length", "corner_mass")
+        _non_negative(self, "knot_mass", "launch_speed")
+        require(0.0 < self.packing <= 1.0, "packing", self.packing, "must be in (0, 1]")
+        require(0.0 <= self.launch_angle_deg < 90.0, "launch_angle_deg", self.launch_angle_deg,
+                "must be in [0, 90) degrees")
+        _finite_vector(self, "center", "direction")
+        require(math.hypot(*self.direction) > 1e-12, "direction", self.direction,
+                "must be a non-zero vector")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class RodSpec:
+    """``[[rods]]``: a free-standing rod along a polyline."""
+
+    name: str
+    material: str
+    points: tuple[Vec3, ...]
+    elements: int = 10
+    velocity: Vec3 = (0.0, 0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        require(self.name != "" and ":" not in self.name, "name", self.name,
+                "must be a non-empty string without ':'")
+        require(len(self.points) >= 2, "points", self.points,
+                "needs at least two points (a rod of one node has no element)")
+        for a, b in zip(self.points[:-1], self.points[1:]):
+            require(math.dist(a, b) > 0.0, "points", self.points,
+                    "consecutive points must differ (zero-length segment)")
+        require(self.elements >= len(self.points) - 1, "elements", self.elements,
+                f"must be an integer >= {len(self.points) - 1} (one per polyline segment)")
+        _finite_vector(self, "velocity")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class SupportSpec:
+    """``[[supports]]``: a fixed node."""
+
+    node: str
+    fix: Literal["clamp", "pin"] = "clamp"
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class LoadSpec:
+    """``[[loads]]``: a dead force and moment on a node, optionally ramped from zero."""
+
+    node: str
+    force: Vec3 = (0.0, 0.0, 0.0)
+    moment: Vec3 = (0.0, 0.0, 0.0)
+    ramp: float = 0.0
+
+    def __post_init__(self) -> None:
+        _finite_vector(self, "force", "moment")
+        _non_negative(self, "ramp")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class MassSpec:
+    """``[[masses]]``: a point mass added to a node, with that node's initial velocity."""
+
+    node: str
+    mass: float
+    velocity: Vec3 | None = None
+
+    def __post_init__(self) -> None:
+        _positive(self, "mass")
+        if self.velocity is not None:
+            _finite_vector(self, "velocity")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class OutputSpec:
+    """``[output]``: where results go and which ones are written."""
+
+    directory: str = "out"
+    frame_interval: float = 0.01
+    vtk: bool = True
+    picture: bool = False
+    plot: bool = False
+
+    def __post_init__(self) -> None:
+        _positive(self, "frame_interval")
+        require(self.directory != "", "directory", self.directory, "must be a non-empty path")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Scene:
+    """A whole scene: everything a run needs."""
+
+    simulation: SimulationSpec = field(default_factory=SimulationSpec)
+    model: ModelSpec = field(default_factory=ModelSpec)
+    materials: tuple[MaterialSpec, ...] = ()
+    net: NetSpec | None = None
+    rods: tuple[RodSpec, ...] = ()
+    supports: tuple[SupportSpec, ...] = ()
+    loads: tuple[LoadSpec, ...] = ()
+    masses: tuple[MassSpec, ...] = ()
+    output: OutputSpec = field(default_factory=OutputSpec)
+    source: str = "<scene>"
+
+    def __post_init__(self) -> None:
+        names = [m.name for m in self.materials]
+        for i, name in enumerate(names):
+            require(names.index(name) == i, f"materials[{i}].name", name, "must be unique")
+        used = ([("net.material", self.net.material)] if self.net else []) + [
+            (f"rods[{i}].material", r.material) for i, r in enumerate(self.rods)]
+        for key, name in used:
+            require(name in names, key, name, f"must name a material defined in [[materials]]: {names}")
+        rod_names = [r.name for r in self.rods]
+        for i, name in enumerate(rod_names):
+            require(rod_names.index(name) == i and name != "net", f"rods[{i}].name", name,
+                    "must be unique and not 'net'")
+        require(self.net is not None or len(self.rods) > 0, "net", None,
+                "a scene needs a [net] or at least one [[rods]]")
+
+    @property
+    def integrator(self) -> str:
+        """The integrator in use: the scene's, or the model's default."""
+        if self.simulation.integrator is not None:
+            return self.simulation.integrator
+        return "explicit" if self.model.type == "lumped" else "generalized-alpha"
+
+    def material(self, name: str) -> MaterialSpec:
+        """The material called ``name``."""
+        return next(m for m in self.materials if m.name == name)

@@ -1,0 +1,1 @@
+"""Time integrators. They see a model through a few methods, never a rod or a net."""

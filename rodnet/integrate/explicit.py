@@ -1,0 +1,58 @@
+"""Explicit symplectic Euler for the lumped model, compiled, stepping exactly onto frame times.
+
+Scheme: ``elements/spring/FORMULATION.md`` (S9); stable step (S10).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rodnet.errors import SimulationFailed
+from rodnet.integrate.frames import FrameSink, ProgressSink, StepStats
+from rodnet.kernels.lumped_explicit import advance
+from rodnet.reference.lumped import LumpedModel
+
+
+def explicit_step(model: LumpedModel, dt: float, adaptive: bool, safety: float) -> float:
+    """The step to use: ``safety`` times the stability limit when adaptive, else ``dt`` itself."""
+    return safety * model.stable_step() if adaptive else dt
+
+
+def integrate_explicit(model: LumpedModel, x0: NDArray[np.float64], v0: NDArray[np.float64],
+                       times: NDArray[np.float64], dt: float, on_frame: FrameSink,
+                       on_progress: ProgressSink | None = None) -> StepStats:
+    """Step from ``times[0]`` to ``times[-1]``, handing every frame time's state to ``on_frame``.
+
+    Between two frames the step is ``dt`` shrunk so that a whole number of steps fits.
+
+    Raises
+    ------
+    SimulationFailed
+        When a position becomes non-finite; every earlier frame has been handed on.
+    """
+    x, v = np.array(x0, dtype=float), np.array(v0, dtype=float)
+    scratch = np.empty_like(x)
+    stats = StepStats()
+    on_frame(float(times[0]), x, v)
+    args = (model.segments, model.rest_length, model.EA, model.etaA, model.kink_strain,
+            model.tension_only, model.inv_mass, model.gravity_force, model.load_nodes,
+            model.load_force, model.load_ramp)
+    for t_start, t_end in zip(times[:-1], times[1:]):
+        n_steps = max(1, math.ceil((t_end - t_start) / dt - 1e-9))
+        h = (t_end - t_start) / n_steps
+        peak, done = advance(x, v, scratch, float(t_start), h, n_steps, *args)
+        stats.record_step(h, done)
+        stats.function_evaluations += done
+        stats.max_tension = max(stats.max_tension, peak)
+        if done < n_steps or not np.isfinite(v).all():
+            raise SimulationFailed(
+                f"the explicit solution diverged (non-finite state) at t = {t_start + done * h:.6g} s "
+                f"with dt = {h:.3g} s; the stability limit of this scene is "
+                f"{model.stable_step():.3g} s")
+        on_frame(float(t_end), x, v)
+        if on_progress is not None:
+            on_progress(float(t_end), h, stats)
+    return stats

@@ -1,0 +1,49 @@
+"""What every integrator reports: saved frames and step statistics."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+
+@dataclass
+class StepStats:
+    """Counters of the work an integrator did."""
+
+    steps: int = 0
+    newton_iterations: int = 0
+    factorizations: int = 0
+    rejected_steps: int = 0
+    function_evaluations: int = 0
+    max_tension: float = 0.0
+    dt_min: float = float("inf")
+    dt_max: float = 0.0
+    extra: dict[str, float] = field(default_factory=dict)
+
+    def record_step(self, dt: float, count: int = 1) -> None:
+        self.steps += count
+        self.dt_min = min(self.dt_min, dt)
+        self.dt_max = max(self.dt_max, dt)
+
+
+class FrameSink(Protocol):
+    """Receives every saved frame: time [s], positions (N, 3) [m], velocities (N, 3) [m/s]."""
+
+    def __call__(self, time: float, positions: NDArray[np.float64],
+                 velocities: NDArray[np.float64]) -> None: ...
+
+
+ProgressSink = Callable[[float, float, StepStats], None]
+"""Called now and then with simulated time [s], current step [s] and the counters."""
+
+
+def frame_times(duration: float, frame_interval: float) -> NDArray[np.float64]:
+    """Times of the saved frames: 0, frame_interval, ..., and ``duration`` itself, (F,)."""
+    n = int(np.floor(duration / frame_interval + 1e-9))
+    times = np.arange(n + 1) * frame_interval
+    if duration - times[-1] > 1e-9 * frame_interval:
+        times = np.append(times, duration)
+    return times

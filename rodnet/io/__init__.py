@@ -1,0 +1,1 @@
+"""Result files: VTU frames and their ``.pvd`` series, ``result.npz``, ``summary.json``."""

@@ -1,0 +1,1 @@
+"""Pure array kernels: no classes, no configuration, no sparse matrices."""

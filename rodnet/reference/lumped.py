@@ -1,0 +1,166 @@
+"""The lumped-parameter reference net: point masses joined by tension-only Kelvin-Voigt segments.
+
+Equations: ``elements/spring/FORMULATION.md``. Each segment of the :class:`~rodnet.topology.Structure`
+is one spring-damper (k = EA / l0, c = viscosity * A / l0); half of each segment's mass goes to
+each end, concentrated masses are added, supported nodes do not move.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import NDArray
+
+from rodnet.config import Scene
+from rodnet.errors import SceneError
+from rodnet.kernels.tension import axial_energy, axial_force
+from rodnet.topology import Structure
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class LumpedModel:
+    """Read-only arrays of the lumped model.
+
+    Attributes
+    ----------
+    structure : Structure
+    mass : (N,) float
+        Nodal mass [kg], (S1).
+    inv_mass : (N,) float
+        1 / mass, zero for supported nodes (they never accelerate).
+    EA, etaA : (E,) float
+        Axial stiffness [N] and viscous coefficient viscosity * A [N s] of each segment.
+    kink_strain : float
+    tension_only : bool
+    gravity_force : (N, 3) float
+        mass * g [N].
+    load_nodes : (L,) int, load_force : (L, 3) float, load_ramp : (L,) float
+        Dead point loads [N] and their ramp times [s] (0: applied at once).
+    """
+
+    structure: Structure
+    mass: FloatArray
+    inv_mass: FloatArray
+    EA: FloatArray
+    etaA: FloatArray
+    kink_strain: float
+    tension_only: bool
+    gravity_force: FloatArray
+    load_nodes: NDArray[np.int64]
+    load_force: FloatArray
+    load_ramp: FloatArray
+
+    @property
+    def segments(self) -> NDArray[np.int64]:
+        return self.structure.segments
+
+    @property
+    def rest_length(self) -> FloatArray:
+        return self.structure.rest_length
+
+    def segment_kinematics(self, x: FloatArray, v: FloatArray) -> tuple[FloatArray, ...]:
+        """Length l (E,), unit direction t (E, 3), strain e = l/l0 - 1 and its rate (E,), (S2)."""
+        a, b = self.segments[:, 0], self.segments[:, 1]
+        d = x[b] - x[a]
+        length = np.sqrt(np.einsum("ij,ij->i", d, d))
+        t = d / np.where(length > 0.0, length, 1.0)[:, None]
+        rate = np.einsum("ij,ij->i", v[b] - v[a], t) / self.rest_length
+        return length, t, length / self.rest_length - 1.0, rate
+
+    def tension(self, x: FloatArray, v: FloatArray) -> FloatArray:
+        """Axial force of every segment [N], (E,)."""
+        _, _, e, rate = self.segment_kinematics(x, v)
+        return axial_force(e, rate, self.EA, self.etaA, self.kink_strain, self.tension_only)
+
+    def external_force(self, t: float) -> FloatArray:
+        """Gravity plus ramped dead loads at time ``t`` [N], (N, 3)."""
+        f = self.gravity_force.copy()
+        scale = np.where(self.load_ramp > 0.0, np.minimum(1.0, t / np.where(
+            self.load_ramp > 0.0, self.load_ramp, 1.0)), 1.0)
+        np.add.at(f, self.load_nodes, scale[:, None] * self.load_force)
+        return f
+
+    def force(self, x: FloatArray, v: FloatArray, t: float) -> FloatArray:
+        """Total force on every node [N], (N, 3): segment forces (S7) plus external forces."""
+        _, direction, e, rate = self.segment_kinematics(x, v)
+        n = axial_force(e, rate, self.EA, self.etaA, self.kink_strain, self.tension_only)
+        return self._incidence @ (n[:, None] * direction) + self.external_force(t)
+
+    def acceleration(self, x: FloatArray, v: FloatArray, t: float) -> FloatArray:
+        """Nodal acceleration [m/s^2], (N, 3); zero at supported nodes."""
+        return self.force(x, v, t) * self.inv_mass[:, None]
+
+    def energy(self, x: FloatArray, v: FloatArray, t: float) -> dict[str, float]:
+        """Kinetic, elastic and external-load potential energy [J], (S8)."""
+        _, _, e, _ = self.segment_kinematics(x, v)
+        elastic = axial_energy(e, self.EA, self.rest_length, self.kink_strain, self.tension_only)
+        kinetic = 0.5 * np.sum(self.mass * np.einsum("ij,ij->i", v, v))
+        potential = -float(np.sum(self.external_force(t) * x))
+        return {"kinetic": float(kinetic), "elastic": float(elastic.sum()), "potential": potential}
+
+    def stable_step(self) -> float:
+        """Largest stable step [s] of the explicit (symplectic Euler) scheme, (S10).
+
+        Each segment is taken as the stiffest mode it can drive: omega^2 = 2 k (1/m_a + 1/m_b)
+        (the highest mode of a uniform chain, 4 k / m), with its Kelvin-Voigt damping ratio.
+        """
+        a, b = self.segments[:, 0], self.segments[:, 1]
+        k = self.EA / self.rest_length
+        c = self.etaA / self.rest_length
+        omega = np.sqrt(2.0 * k * (self.inv_mass[a] + self.inv_mass[b]))
+        zeta = c * omega / (2.0 * k)
+        steps = 2.0 / np.where(omega > 0, omega, np.inf) * (np.sqrt(1.0 + zeta**2) - zeta)
+        return float(np.min(steps))
+
+    @property
+    def _incidence(self) -> sp.csr_matrix:
+        """Signed node-segment incidence (N, E): +1 at the segment's end node, -1 at its start."""
+        cached = self.__dict__.get("_incidence_cache")
+        if cached is None:
+            n_seg = len(self.segments)
+            rows = self.segments.T.ravel()
+            cols = np.tile(np.arange(n_seg), 2)
+            vals = np.concatenate([np.ones(n_seg), -np.ones(n_seg)])
+            cached = sp.csr_matrix((vals, (rows, cols)), shape=(self.structure.n_nodes, n_seg))
+            object.__setattr__(self, "_incidence_cache", cached)
+        return cached
+
+
+def build_lumped(scene: Scene, structure: Structure) -> LumpedModel:
+    """The lumped model of a scene (masses (S1), springs (S3), supports, gravity, loads)."""
+    materials = scene.materials
+    rho_a = np.array([m.rhoA for m in materials])[structure.material]
+    seg_mass = rho_a * structure.rest_length
+    mass = structure.point_mass.copy()
+    np.add.at(mass, structure.segments[:, 0], 0.5 * seg_mass)
+    np.add.at(mass, structure.segments[:, 1], 0.5 * seg_mass)
+    inv_mass = 1.0 / mass
+    for i, s in enumerate(scene.supports):
+        inv_mass[structure.node(s.node, f"supports[{i}].node")] = 0.0
+    for i, load in enumerate(scene.loads):
+        if any(load.moment):
+            raise SceneError(f"loads[{i}].moment", load.moment,
+                             "a lumped model has no rotations; moments need model.type = 'cosserat'")
+    load_nodes = np.array([structure.node(l.node, f"loads[{i}].node")
+                           for i, l in enumerate(scene.loads)], dtype=np.int64)
+    model = LumpedModel(
+        structure=structure, mass=mass, inv_mass=inv_mass,
+        EA=np.array([m.EA for m in materials])[structure.material],
+        etaA=np.array([m.damping_coefficient for m in materials])[structure.material],
+        kink_strain=scene.model.kink_strain, tension_only=scene.model.axial == "tension-only",
+        gravity_force=mass[:, None] * np.asarray(scene.simulation.gravity)[None, :],
+        load_nodes=load_nodes,
+        load_force=np.array([l.force for l in scene.loads], float).reshape(-1, 3),
+        load_ramp=np.array([l.ramp for l in scene.loads], float))
+    for name in ("mass", "inv_mass", "EA", "etaA", "gravity_force", "load_nodes", "load_force",
+                 "load_ramp"):
+        getattr(model, name).setflags(write=False)
+    if not math.isfinite(model.stable_step()):
+        raise SceneError("supports", [s.node for s in scene.supports],
+                         "every node is supported: nothing can move")
+    return model

@@ -1,0 +1,160 @@
+"""Load a scene from TOML into the frozen dataclasses of :mod:`rodnet.config`.
+
+Dicts exist only here. Parsing is strict: an unknown key or section, a wrong type or an
+out-of-range value raises :class:`SceneError` naming the key (with its section), the value and
+what is allowed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+import types
+import typing
+from pathlib import Path
+from typing import Any, Literal
+
+from rodnet.config import (LoadSpec, MassSpec, MaterialSpec, ModelSpec, NetSpec, OutputSpec,
+                           RodSpec, Scene, SimulationSpec, SupportSpec)
+from rodnet.errors import SceneError
+
+TABLES = {"simulation": SimulationSpec, "model": ModelSpec, "net": NetSpec, "output": OutputSpec}
+ARRAYS = {"materials": MaterialSpec, "rods": RodSpec, "supports": SupportSpec,
+          "loads": LoadSpec, "masses": MassSpec}
+NOT_YET = {"bodies": "rigid bodies", "contact": "contact"}
+
+
+def load_scene(path: str | Path, overrides: typing.Sequence[str] = ()) -> Scene:
+    """Read a TOML scene file and apply ``KEY=VALUE`` overrides.
+
+    Parameters
+    ----------
+    path : str or Path
+        The scene file.
+    overrides : sequence of str
+        ``"section.key=value"`` (value in TOML syntax; a bare word is taken as a string),
+        ``"materials[0].density=1500"`` for array sections.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise SceneError("", str(path), f"cannot read the scene file: {exc.strerror}") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError("", str(path), f"is not valid TOML: {exc}") from None
+    return scene_from_dict(apply_overrides(data, overrides), source=str(path))
+
+
+def scene_from_toml(text: str, overrides: typing.Sequence[str] = (), source: str = "<scene>") -> Scene:
+    """Like :func:`load_scene`, from TOML text."""
+    return scene_from_dict(apply_overrides(tomllib.loads(text), overrides), source=source)
+
+
+def apply_overrides(data: dict[str, Any], overrides: typing.Sequence[str]) -> dict[str, Any]:
+    """Return a copy of ``data`` with every ``KEY=VALUE`` override set."""
+    import copy
+
+    data = copy.deepcopy(data)
+    for item in overrides:
+        key, sep, raw = item.partition("=")
+        if not sep or not key.strip():
+            raise SceneError("--set", item, "must look like section.key=value")
+        parts = key.strip().replace("[", ".").replace("]", "").split(".")
+        try:
+            value = tomllib.loads(f"v = {raw}")["v"]
+        except tomllib.TOMLDecodeError:
+            value = raw.strip()
+        node: Any = data
+        for i, part in enumerate(parts[:-1]):
+            if isinstance(node, list):
+                if not part.isdigit() or int(part) >= len(node):
+                    raise SceneError(".".join(parts[:i + 1]), part,
+                                     f"index must be 0..{len(node) - 1} in this scene")
+                node = node[int(part)]
+            else:
+                node = node.setdefault(part, {})
+        if not isinstance(node, dict):
+            raise SceneError(key, raw, "names no table of the scene")
+        node[parts[-1]] = value
+    return data
+
+
+def scene_from_dict(data: dict[str, Any], source: str = "<scene>") -> Scene:
+    """Build a :class:`Scene` from parsed TOML."""
+    kwargs: dict[str, Any] = {"source": source}
+    for name, value in data.items():
+        if name in TABLES:
+            _expect(isinstance(value, dict), name, value, "must be a table [name]")
+            kwargs[name] = _build(TABLES[name], value, name)
+        elif name in ARRAYS:
+            _expect(isinstance(value, list) and all(isinstance(v, dict) for v in value), name,
+                    value, f"must be an array of tables [[{name}]]")
+            kwargs[name] = tuple(_build(ARRAYS[name], v, f"{name}[{i}]") for i, v in enumerate(value))
+        elif name in NOT_YET:
+            raise SceneError(name, "...", f"{NOT_YET[name]} are not supported by this version of rodnet")
+        else:
+            raise SceneError(name, value if not isinstance(value, dict) else "{...}",
+                             f"unknown section; allowed: {sorted([*TABLES, *ARRAYS])}")
+    return Scene(**kwargs)
+
+
+def _expect(ok: bool, key: str, value: Any, allowed: str) -> None:
+    if not ok:
+        raise SceneError(key, value, allowed)
+
+
+def _build(cls: type, table: dict[str, Any], path: str) -> Any:
+    """Instantiate dataclass ``cls`` from ``table``, checking keys and types."""
+    hints = typing.get_type_hints(cls)
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    kwargs = {}
+    for key, value in table.items():
+        if key not in fields:
+            raise SceneError(f"{path}.{key}", value, f"unknown key in [{path.split('[')[0]}]; "
+                             f"allowed: {sorted(fields)}")
+        kwargs[key] = _convert(hints[key], value, f"{path}.{key}")
+    missing = [n for n, f in fields.items() if f.default is dataclasses.MISSING
+               and f.default_factory is dataclasses.MISSING and n not in kwargs]
+    if missing:
+        raise SceneError(f"{path}.{missing[0]}", None, "is required")
+    try:
+        return cls(**kwargs)
+    except SceneError as exc:
+        raise exc.within(path) from None
+
+
+def _convert(hint: Any, value: Any, key: str) -> Any:
+    """Check ``value`` against type ``hint`` and convert it (int to float, list to tuple)."""
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if origin in (typing.Union, types.UnionType):
+        if value is None:
+            return None
+        return _convert(next(a for a in args if a is not type(None)), value, key)
+    if origin is Literal:
+        _expect(value in args, key, value, f"must be one of {list(args)}")
+        return value
+    if hint is bool:
+        _expect(isinstance(value, bool), key, value, "must be true or false")
+        return value
+    if hint is int:
+        _expect(isinstance(value, int) and not isinstance(value, bool), key, value,
+                "must be an integer")
+        return value
+    if hint is float:
+        _expect(isinstance(value, (int, float)) and not isinstance(value, bool), key, value,
+                "must be a number")
+        _expect(math.isfinite(value), key, value, "must be a finite number")
+        return float(value)
+    if hint is str:
+        _expect(isinstance(value, str), key, value, "must be a string")
+        return value
+    if origin is tuple:
+        _expect(isinstance(value, list), key, value, "must be an array")
+        if len(args) == 2 and args[1] is Ellipsis:
+            return tuple(_convert(args[0], v, f"{key}[{i}]") for i, v in enumerate(value))
+        _expect(len(value) == len(args), key, value, f"must be an array of {len(args)} numbers")
+        return tuple(_convert(a, v, key) for a, v in zip(args, value))
+    raise TypeError(f"no converter for {hint!r}")  # a programming error, not bad input

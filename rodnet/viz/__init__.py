@@ -1,0 +1,1 @@
+"""Pictures and plots of results (pyvista, matplotlib): imported only when asked for."""
