@@ -37,9 +37,8 @@ def integrate_explicit(model: LumpedModel, x0: NDArray[np.float64], v0: NDArray[
     scratch = np.empty_like(x)
     stats = StepStats()
     on_frame(float(times[0]), x, v)
-    args = (model.segments, model.rest_length, model.EA, model.etaA, model.kink_strain,
-            model.tension_only, model.inv_mass, model.gravity_force, model.load_nodes,
-            model.load_force, model.load_ramp)
+    k = model.kernel_arguments()
+    args = (*k[:6], model.inv_mass, *k[6:])
     for t_start, t_end in zip(times[:-1], times[1:]):
         n_steps = max(1, math.ceil((t_end - t_start) / dt - 1e-9))
         h = (t_end - t_start) / n_steps

@@ -12,6 +12,7 @@ from scipy.integrate import RK45
 
 from rodnet.errors import SimulationFailed
 from rodnet.integrate.frames import FrameSink, ProgressSink, StepStats
+from rodnet.kernels.lumped_explicit import accumulate_forces
 from rodnet.reference.lumped import LumpedModel
 
 
@@ -32,8 +33,10 @@ def integrate_rk45(model: LumpedModel, x0: NDArray[np.float64], v0: NDArray[np.f
 
     def rhs(t: float, y: NDArray[np.float64]) -> NDArray[np.float64]:
         x, v = y[:3 * n].reshape(n, 3), y[3 * n:].reshape(n, 3)
-        return np.concatenate([v.ravel(), model.acceleration(x, v, t).ravel()])
+        accumulate_forces(x, v, t, force, *args)
+        return np.concatenate([y[3 * n:], (force * inv_mass).ravel()])
 
+    force, args, inv_mass = np.empty((n, 3)), model.kernel_arguments(), model.inv_mass[:, None]
     y0 = np.concatenate([np.ravel(x0), np.ravel(v0)]).astype(float)
     solver = RK45(rhs, float(times[0]), y0, float(times[-1]), rtol=rtol, atol=rtol * 1e-3,
                   first_step=first_step)

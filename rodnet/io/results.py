@@ -34,7 +34,7 @@ def scene_as_dict(scene: Scene) -> dict[str, Any]:
     out = clean(out)
     out["simulation"]["integrator"] = scene.integrator
     if scene.net is None:
-        out.pop("net")
+        out.pop("net", None)
     return {k: v for k, v in out.items() if v != []}
 
 

@@ -92,8 +92,22 @@ class LumpedModel:
         return self._incidence @ (n[:, None] * direction) + self.external_force(t)
 
     def acceleration(self, x: FloatArray, v: FloatArray, t: float) -> FloatArray:
-        """Nodal acceleration [m/s^2], (N, 3); zero at supported nodes."""
-        return self.force(x, v, t) * self.inv_mass[:, None]
+        """Nodal acceleration [m/s^2], (N, 3); zero at supported nodes.
+
+        Uses the compiled force loop (:mod:`rodnet.kernels.lumped_explicit`), which tests check
+        against the NumPy :meth:`force`.
+        """
+        from rodnet.kernels.lumped_explicit import accumulate_forces
+
+        f = np.empty_like(x)
+        accumulate_forces(x, v, t, f, *self.kernel_arguments())
+        return f * self.inv_mass[:, None]
+
+    def kernel_arguments(self) -> tuple:
+        """The model's arrays in the order the compiled kernels take them (after the state)."""
+        return (self.segments, self.rest_length, self.EA, self.etaA, self.kink_strain,
+                self.tension_only, self.gravity_force, self.load_nodes, self.load_force,
+                self.load_ramp)
 
     def energy(self, x: FloatArray, v: FloatArray, t: float) -> dict[str, float]:
         """Kinetic, elastic and external-load potential energy [J], (S8)."""

@@ -1,0 +1,157 @@
+"""The lumped reference model: force law, compiled kernel, analytic oscillator, net invariants."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rodnet.errors import SimulationFailed
+from rodnet.integrate.explicit import integrate_explicit
+from rodnet.integrate.frames import frame_times
+from rodnet.kernels.lumped_explicit import accumulate_forces
+from rodnet.kernels.tension import axial_force
+from rodnet.run import prepare, run
+from rodnet.scene import scene_from_toml
+from tests.conftest import small_net_toml
+
+SPRING = """
+[simulation]
+duration = {duration}
+integrator = "{integrator}"
+adaptive = false
+dt = {dt}
+rtol = 1e-9
+[model]
+type = "lumped"
+axial = "{axial}"
+kink_strain = 0.0
+[[materials]]
+name = "wire"
+density = 1000.0
+youngs_modulus = 1.0e9
+diameter = 1.0e-3
+viscosity = {viscosity}
+[[rods]]
+name = "spring"
+material = "wire"
+points = [[0, 0, 0], [1, 0, 0]]
+elements = 1
+[[supports]]
+node = "spring:start"
+fix = "pin"
+[[masses]]
+node = "spring:end"
+mass = 1.0
+velocity = [{v0}, 0.0, 0.0]
+[output]
+frame_interval = 0.001
+vtk = false
+"""
+
+
+def spring(duration=0.2, integrator="explicit", dt=1e-5, axial="linear", viscosity=0.0, v0=0.1):
+    return scene_from_toml(SPRING.format(duration=duration, integrator=integrator, dt=dt,
+                                         axial=axial, viscosity=viscosity, v0=v0))
+
+
+def test_compiled_forces_equal_numpy_forces() -> None:
+    rng = np.random.default_rng(1)
+    for axial in ("tension-only", "linear"):
+        p = prepare(scene_from_toml(small_net_toml(n=2), [f"model.axial={axial}",
+                                                          "simulation.gravity=[0, 0, -9.81]"]))
+        x = p.model.structure.rest_positions * rng.uniform(0.98, 1.02, p.x0.shape)
+        v = rng.normal(size=x.shape)
+        f = np.empty_like(x)
+        accumulate_forces(x, v, 0.3, f, *p.model.kernel_arguments())
+        np.testing.assert_allclose(f, p.model.force(x, v, 0.3), rtol=1e-12, atol=1e-9)
+
+
+def test_tension_only_law_never_pushes() -> None:
+    e = np.array([-0.1, 0.0, 1e-3, 1e-3, 2e-3])
+    rate = np.array([0.0, 5.0, 0.0, -100.0, 1.0])
+    n = axial_force(e, rate, np.full(5, 100.0), np.full(5, 1.0), 0.0, True)
+    np.testing.assert_allclose(n, [0.0, 0.0, 0.1, 0.0, 1.2])  # slack, kink, taut, fast shortening
+    lin = axial_force(e, rate, np.full(5, 100.0), np.full(5, 1.0), 0.0, False)
+    assert lin[0] < 0 and lin[3] < 0  # the linear law does push
+
+
+def test_undamped_spring_mass_period_and_amplitude() -> None:
+    """Linear spring k = EA/l0 with a 1 kg end mass: x(t) = (v0/w) sin(w t), w^2 = k/m."""
+    scene = spring(duration=0.2, dt=2e-6)
+    r = run(scene, _tmp(), progress=False)
+    k = 1.0e9 * np.pi / 4 * 1e-6 / 1.0
+    m = 1.0 + 0.5 * 1000.0 * np.pi / 4 * 1e-6
+    w = np.sqrt(k / m)
+    t = r.arrays["time"]
+    u = r.arrays["positions"][:, 1, 0] - 1.0
+    np.testing.assert_allclose(u, 0.1 / w * np.sin(w * t), atol=2e-3 * 0.1 / w)
+
+
+def test_kelvin_voigt_logarithmic_decrement() -> None:
+    """Damped oscillator: amplitude ratio over one period exp(-2 pi zeta / sqrt(1 - zeta^2))."""
+    viscosity = 4.0e6
+    r = run(spring(duration=0.1, dt=1e-6, viscosity=viscosity, integrator="rk45"), _tmp(), progress=False)
+    k = 1.0e9 * np.pi / 4 * 1e-6
+    c = viscosity * np.pi / 4 * 1e-6
+    m = 1.0 + 0.5 * 1000.0 * np.pi / 4 * 1e-6
+    zeta = c / (2 * np.sqrt(k * m))
+    u = r.arrays["positions"][:, 1, 0] - 1.0
+    peaks = [u[i] for i in range(1, len(u) - 1) if u[i] > u[i - 1] and u[i] > u[i + 1]]
+    ratio = np.exp(-2 * np.pi * zeta / np.sqrt(1 - zeta**2))
+    assert 0.3 < ratio < 0.95  # strong enough damping for the ratio to mean something
+    np.testing.assert_allclose(np.array(peaks[1:3]) / np.array(peaks[0:2]), ratio, rtol=2e-2)
+
+
+def test_stable_step_separates_stable_from_unstable() -> None:
+    p = prepare(scene_from_toml(small_net_toml(duration=0.3)))
+    limit = p.model.stable_step()
+    times = frame_times(0.3, 0.01)
+    integrate_explicit(p.model, p.x0, p.v0, times, 0.95 * limit, lambda *a: None)
+    with pytest.raises(SimulationFailed, match="diverged"):
+        integrate_explicit(p.model, p.x0, p.v0, times, 2.5 * limit, lambda *a: None)
+
+
+@pytest.fixture(scope="module")
+def deployment():
+    scene = scene_from_toml(small_net_toml(duration=1.0))
+    return prepare(scene), run(scene, _tmp(), progress=False)
+
+
+def test_centre_of_mass_moves_uniformly(deployment) -> None:
+    p, r = deployment
+    m = p.model.mass
+    com = np.einsum("fnk,n->fk", r.arrays["positions"], m) / m.sum()
+    v_com = (m @ p.v0) / m.sum()
+    expected = com[0] + r.arrays["time"][:, None] * v_com
+    travelled = np.linalg.norm(expected[-1] - expected[0])
+    assert np.abs(com - expected).max() <= 1e-9 * travelled
+
+
+def test_energy_never_increases_and_tension_never_negative(deployment) -> None:
+    p, r = deployment
+    energy = np.array([sum(p.model.energy(x, v, t).values()) for t, x, v in
+                       zip(r.arrays["time"], r.arrays["positions"], r.arrays["velocities"])])
+    assert np.diff(energy).max() <= 1e-9 * energy[0]
+    assert energy[-1] < 0.95 * energy[0]  # the threads did dissipate
+    assert r.arrays["tension"].min() >= 0.0 and r.arrays["tension"].max() > 10.0
+
+
+def test_explicit_agrees_with_rk45_on_a_small_net(deployment) -> None:
+    """Up to the maximum mouth area. After it, the light corner masses of this small net snap back
+    and the motion is so sensitive that RK45 at rtol 1e-6 and 1e-8 differ by 1 % of the area; the
+    reference deployment (validation/benchmarks) is compared over its whole 3 s."""
+    _, explicit = deployment
+    rk = run(scene_from_toml(small_net_toml(duration=1.0, integrator="rk45")), _tmp(), progress=False)
+    area = explicit.arrays["mouth_area"]
+    until = slice(0, int(np.argmax(area)) + 1)
+    assert np.abs(area[until] - rk.arrays["mouth_area"][until]).max() < 2e-3 * area.max()
+    dist = explicit.arrays["distance"]
+    assert np.abs(dist[until] - rk.arrays["distance"][until]).max() < 1e-2 * dist[until][-1]
+    assert abs(explicit.summary["metrics"]["time_of_max_mouth_area"]
+               - rk.summary["metrics"]["time_of_max_mouth_area"]) <= 0.01
+
+
+def _tmp():
+    import tempfile
+
+    return tempfile.mkdtemp(prefix="rodnet-test-")

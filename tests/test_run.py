@@ -1,0 +1,120 @@
+"""Runs through the public entry points: outputs, failure handling, lean imports, VTK read-back."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rodnet.cli import main
+from rodnet.reference.lumped import LumpedModel
+from rodnet.run import Recorder, run
+from rodnet.scene import scene_from_toml
+from tests.conftest import small_net_toml
+
+
+def test_outputs_follow_the_contract(tmp_path: Path) -> None:
+    scene = scene_from_toml(small_net_toml(duration=0.2, vtk="true"))
+    r = run(scene, tmp_path, progress=False)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["status"] == "ok" and summary["steps"] > 0 and summary["wall_time_s"] > 0
+    for key in ("max_mouth_area", "time_of_max_mouth_area", "distance_at_max_mouth_area", "max_tension"):
+        assert np.isfinite(summary["metrics"][key])
+    assert summary["nodes"]["net:corner:3"] == 28 and summary["scene"]["net"]["packing"] == 0.2
+    data = np.load(tmp_path / "result.npz")
+    n_frames, n_nodes = 21, 25 + 4
+    assert data["time"].shape == (n_frames,) and data["positions"].shape == (n_frames, n_nodes, 3)
+    assert data["velocities"].shape == data["positions"].shape
+    assert data["tension"].shape == (n_frames, 44) and data["mouth_area"].shape == (n_frames,)
+    assert data["distance"][0] == 0.0
+    np.testing.assert_allclose(data["mouth_area"][0], 0.2**2 * 2 * (2 * np.sqrt(2) + 1) ** 2, rtol=1e-12)
+    assert summary["metrics"]["max_mouth_area"] == pytest.approx(data["mouth_area"].max())
+    assert r.summary["frames"] == n_frames
+
+
+def test_vtk_series_reads_back_in_pyvista(tmp_path: Path) -> None:
+    pv = pytest.importorskip("pyvista")
+    run(scene_from_toml(small_net_toml(duration=0.6, vtk="true")), tmp_path, progress=False)
+    data = np.load(tmp_path / "result.npz")
+    reader = pv.get_reader(str(tmp_path / "result.pvd"))
+    assert reader.number_time_points == len(data["time"]) == 61
+    reader.set_active_time_point(50)
+    assert reader.active_time_value == pytest.approx(0.5)
+    mesh = reader.read()[0]
+    assert mesh.n_points == 29 and mesh.n_cells == 44
+    np.testing.assert_allclose(mesh.cell_data["tension"], data["tension"][50])
+    np.testing.assert_allclose(mesh.points, data["positions"][50])
+    assert data["tension"][50].max() > 0
+
+
+def test_divergence_stops_with_message_and_keeps_frames(tmp_path: Path, monkeypatch) -> None:
+    # A stability limit reported 20 times too large lets the step through the checks; the run
+    # then blows up, and must say so and keep what it computed.
+    real = LumpedModel.stable_step
+    monkeypatch.setattr(LumpedModel, "stable_step", lambda self: 20.0 * real(self))
+    r = run(scene_from_toml(small_net_toml(duration=1.0, vtk="true")), tmp_path, progress=False)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert r.status == summary["status"] == "failed" and "diverged" in summary["message"]
+    data = np.load(tmp_path / "result.npz")
+    assert 1 <= len(data["time"]) < 101 and np.isfinite(data["positions"]).all()
+    assert len(list((tmp_path / "vtk").glob("*.vtu"))) == len(data["time"])
+
+
+def test_interrupt_keeps_frames(tmp_path: Path, monkeypatch) -> None:
+    original = Recorder.__call__
+
+    def interrupt_after_five(self, t, x, v):
+        if len(self.time) == 5:
+            raise KeyboardInterrupt
+        original(self, t, x, v)
+
+    monkeypatch.setattr(Recorder, "__call__", interrupt_after_five)
+    r = run(scene_from_toml(small_net_toml(duration=0.5)), tmp_path, progress=False)
+    assert r.status == "failed" and "interrupted" in r.message
+    assert len(np.load(tmp_path / "result.npz")["time"]) == 5
+
+
+def test_cli_failed_run_exit_status(tmp_path: Path, monkeypatch) -> None:
+    real = LumpedModel.stable_step
+    monkeypatch.setattr(LumpedModel, "stable_step", lambda self: 20.0 * real(self))
+    scene = tmp_path / "s.toml"
+    scene.write_text(small_net_toml(duration=1.0))
+    assert main(["run", str(scene), "-o", str(tmp_path / "o"), "--quiet"]) == 1
+    assert (tmp_path / "o" / "summary.json").exists()
+
+
+def test_lumped_run_imports_neither_pyvista_nor_trimesh(tmp_path: Path) -> None:
+    scene = tmp_path / "s.toml"
+    scene.write_text(small_net_toml(duration=0.05, vtk="true"))
+    code = (f"import sys\nfrom rodnet.cli import main\n"
+            f"assert main(['run', {str(scene)!r}, '-o', {str(tmp_path / 'o')!r}, '--quiet']) == 0\n"
+            "assert 'pyvista' not in sys.modules and 'trimesh' not in sys.modules\n"
+            "assert 'matplotlib' not in sys.modules\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert not (tmp_path / "o" / "net.png").exists()  # nothing written that was not asked for
+
+
+def _rendering_works() -> bool:
+    probe = "import pyvista as pv; pv.Plotter(off_screen=True).screenshot()"
+    try:
+        return subprocess.run([sys.executable, "-c", probe], capture_output=True, timeout=120).returncode == 0
+    except (subprocess.TimeoutExpired, OSError):
+        return False
+
+
+def test_demo_style_figures(tmp_path: Path) -> None:
+    pytest.importorskip("pyvista")
+    pytest.importorskip("matplotlib")
+    if not _rendering_works():
+        pytest.skip("off-screen rendering is not available on this machine (needs libegl1, libgl1-mesa-dri)")
+    scene = tmp_path / "s.toml"
+    scene.write_text(small_net_toml(duration=0.3) + "picture = true\nplot = true\n")
+    assert main(["run", str(scene), "-o", str(tmp_path / "o"), "--quiet"]) == 0
+    for name in ("net.png", "deployment.png"):
+        png = (tmp_path / "o" / name).read_bytes()
+        assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
