@@ -23,10 +23,14 @@ from rodnet.io.results import scene_as_dict, write_npz, write_summary
 from rodnet.io.vtk import VtkSeries
 from rodnet.metrics import distance, mouth_area, net_metrics
 from rodnet.progress import Progress
-from rodnet.reference.lumped import LumpedModel, build_lumped
-from rodnet.topology import build_structure
+from rodnet.formulations.cosserat_build import build_cosserat
+from rodnet.integrate.implicit import Stepper, integrate_implicit, solve_static
+from rodnet.integrate.newton import NewtonOptions
+from rodnet.reference.lumped import build_lumped
+from rodnet.topology import Structure, build_structure
 
 IMPLICIT = ("generalized-alpha", "backward-euler")
+LUMPED_ONLY = ("explicit", "rk45")
 
 
 @dataclass(frozen=True)
@@ -34,31 +38,34 @@ class Prepared:
     """A scene turned into a model, an initial state and a stepping plan, ready to run."""
 
     scene: Scene
-    model: LumpedModel
-    x0: NDArray[np.float64]
+    model: Any            # LumpedModel (lumped, or cable threads) or CosseratModel
+    q0: Any
     v0: NDArray[np.float64]
     times: NDArray[np.float64]
     dt: float
+    mass: NDArray[np.float64]   # (N,) translational node masses [kg]
+    structure: Structure
 
 
 def prepare(scene: Scene) -> Prepared:
     """Build the model and check the stepping plan; raises :class:`SceneError` on bad input."""
-    sim = scene.simulation
-    if scene.model.type != "lumped":
-        raise SceneError("model.type", scene.model.type,
-                         "this version of rodnet runs the lumped reference model only: use 'lumped'")
-    if sim.type == "static":
-        raise SceneError("simulation.type", sim.type,
-                         "static runs need the implicit solver, not available in this version: use 'dynamic'")
-    if scene.integrator in IMPLICIT:
-        raise SceneError("simulation.integrator", scene.integrator,
-                         "the lumped model runs with 'explicit' or 'rk45' in this version")
+    sim, integrator = scene.simulation, scene.integrator
     structure = build_structure(scene)
-    model = build_lumped(scene, structure)
-    v0 = structure.velocities.copy()
-    v0[model.inv_mass == 0.0] = 0.0
+    rods_mode = scene.model.type == "cosserat" and (scene.model.bending or scene.model.torsion)
+    if rods_mode:
+        model, q0, v0 = build_cosserat(scene, structure)
+        if integrator in LUMPED_ONLY and sim.type == "dynamic":
+            raise SceneError("simulation.integrator", integrator, "Cosserat rods need an implicit "
+                             f"integrator: one of {list(IMPLICIT)}")
+        mass = model.node_mass
+    else:  # lumped reference, or Cosserat threads without bending and torsion (cables)
+        model = build_lumped(scene, structure)
+        q0, mass = structure.positions.copy(), model.mass
+        v0 = structure.velocities.copy()
+        v0[model.inv_mass == 0.0] = 0.0
+        v0 = v0.ravel() if integrator in IMPLICIT or sim.type == "static" else v0
     dt = sim.dt
-    if scene.integrator == "explicit":
+    if sim.type == "dynamic" and integrator == "explicit":
         limit = model.stable_step()
         if sim.adaptive:
             dt = sim.explicit_safety * limit
@@ -66,39 +73,45 @@ def prepare(scene: Scene) -> Prepared:
             raise SceneError("simulation.dt", dt, f"exceeds the explicit stability limit "
                              f"{limit:.3g} s of this scene; use dt <= {limit:.3g} "
                              f"(about half of it for accurate snap loads) or adaptive = true")
-    times = frame_times(sim.duration, scene.output.frame_interval)
-    return Prepared(scene, model, structure.positions.copy(), v0, times, dt)
+    if sim.type == "static":
+        times = np.arange(1, sim.load_steps + 1) / sim.load_steps
+    else:
+        times = frame_times(sim.duration, scene.output.frame_interval)
+    return Prepared(scene, model, q0, v0, times, dt, mass, structure)
 
 
 @dataclass
 class Recorder:
     """Keeps every frame in memory and streams it to VTK when asked."""
 
-    model: LumpedModel
+    model: Any
     vtk: VtkSeries | None
+    skip_first: bool = False
     time: list[float] = field(default_factory=list)
-    positions: list[NDArray[np.float64]] = field(default_factory=list)
-    velocities: list[NDArray[np.float64]] = field(default_factory=list)
-    tension: list[NDArray[np.float64]] = field(default_factory=list)
+    frames: list[dict[str, NDArray[np.float64]]] = field(default_factory=list)
 
-    def __call__(self, t: float, x: NDArray[np.float64], v: NDArray[np.float64]) -> None:
-        tension = self.model.tension(x, v)
+    def __call__(self, t: float, q: Any, v: NDArray[np.float64]) -> None:
+        if self.skip_first:  # a static run's unloaded start is not a load step
+            self.skip_first = False
+            return
+        frame = self.model.frame_arrays(q, v)
         self.time.append(t)
-        self.positions.append(np.array(x))
-        self.velocities.append(np.array(v))
-        self.tension.append(tension)
+        self.frames.append(frame)
         if self.vtk is not None:
-            self.vtk.write(t, x, v, tension)
+            self.vtk.write(t, frame)
 
-    def arrays(self) -> dict[str, NDArray[Any]]:
-        """``time`` (F,), ``positions`` and ``velocities`` (F, N, 3), ``tension`` (F, E),
-        ``segments`` (E, 2) node pairs."""
-        n, e = self.model.structure.n_nodes, len(self.model.segments)
-        return {"time": np.array(self.time),
-                "positions": np.array(self.positions).reshape(-1, n, 3),
-                "velocities": np.array(self.velocities).reshape(-1, n, 3),
-                "tension": np.array(self.tension).reshape(-1, e),
-                "segments": np.asarray(self.model.segments)}
+    def arrays(self, structure: Structure) -> dict[str, NDArray[Any]]:
+        """``time`` (F,), ``positions`` and ``velocities`` (F, N, 3), ``tension`` (F, E), rods
+        also ``rotations`` (F, N, 4), ``curvature`` and ``twist`` (F, E); ``segments`` (E, 2)."""
+        n, e = structure.n_nodes, len(structure.segments)
+        out: dict[str, NDArray[Any]] = {"time": np.array(self.time)}
+        shapes = {"positions": (n, 3), "velocities": (n, 3), "rotations": (n, 4), "tension": (e,),
+                  "curvature": (e,), "twist": (e,)}
+        keys = self.frames[0].keys() if self.frames else ("positions", "velocities", "tension")
+        for key in keys:
+            out[key] = np.array([f[key] for f in self.frames]).reshape(-1, *shapes[key])
+        out["segments"] = np.asarray(structure.segments)
+        return out
 
 
 @dataclass(frozen=True)
@@ -126,8 +139,8 @@ def run(scene: Scene, directory: str | Path | None = None, *, progress: bool | N
     prepared = prepare(scene)
     out = Path(directory if directory is not None else scene.output.directory)
     out.mkdir(parents=True, exist_ok=True)
-    vtk = VtkSeries(out, prepared.model.segments) if scene.output.vtk else None
-    recorder = Recorder(prepared.model, vtk)
+    vtk = VtkSeries(out, prepared.structure.segments) if scene.output.vtk else None
+    recorder = Recorder(prepared.model, vtk, skip_first=scene.simulation.type == "static")
     bar = Progress(scene.simulation.duration, enabled=progress)
     status, message, stats = "ok", "", StepStats()
     start = time.perf_counter()
@@ -140,7 +153,7 @@ def run(scene: Scene, directory: str | Path | None = None, *, progress: bool | N
     finally:
         bar.close()
         wall = time.perf_counter() - start
-        arrays = recorder.arrays()
+        arrays = recorder.arrays(prepared.structure)
         summary = _summary(prepared, arrays, stats, status, message, wall)
         write_npz(out / "result.npz", arrays)
         write_summary(out / "summary.json", summary)
@@ -151,25 +164,32 @@ def run(scene: Scene, directory: str | Path | None = None, *, progress: bool | N
 
 
 def _integrate(p: Prepared, recorder: Recorder, bar: Progress, stats: StepStats) -> StepStats:
+    sim = p.scene.simulation
+    options = NewtonOptions(rtol=min(sim.rtol, 1e-6) * 1e-2)
+    if sim.type == "static":
+        return solve_static(p.model, p.q0, sim.load_steps, options, recorder)
     if p.scene.integrator == "rk45":
         from rodnet.integrate.rk45 import integrate_rk45
 
-        return integrate_rk45(p.model, p.x0, p.v0, p.times, p.scene.simulation.rtol, recorder, bar)
-    from rodnet.integrate.explicit import integrate_explicit
+        return integrate_rk45(p.model, p.q0, p.v0, p.times, sim.rtol, recorder, bar)
+    if p.scene.integrator == "explicit":
+        from rodnet.integrate.explicit import integrate_explicit
 
-    return integrate_explicit(p.model, p.x0, p.v0, p.times, p.dt, recorder, bar)
+        return integrate_explicit(p.model, p.q0, p.v0, p.times, p.dt, recorder, bar)
+    stepper = Stepper(p.model, p.scene.integrator, sim.rho_inf, options)
+    return integrate_implicit(stepper, p.q0, p.v0, p.times, p.dt, sim.adaptive, recorder, bar)
 
 
 def _summary(p: Prepared, arrays: dict[str, NDArray[Any]], stats: StepStats, status: str,
              message: str, wall: float) -> dict[str, Any]:
-    structure = p.model.structure
+    structure = p.structure
     metrics: dict[str, float] = {}
     if len(arrays["time"]):
         metrics["max_tension"] = max(stats.max_tension, float(arrays["tension"].max(initial=0.0)))
         metrics["max_tension_at_frames"] = float(arrays["tension"].max(initial=0.0))
     if structure.net is not None and len(arrays["time"]):
         area = mouth_area(arrays["positions"], structure.net)
-        dist = distance(arrays["positions"], p.model.mass, structure.net)
+        dist = distance(arrays["positions"], p.mass, structure.net)
         arrays["mouth_area"], arrays["distance"] = area, dist
         metrics.update(net_metrics(arrays["time"], area, dist))
     return {
@@ -180,8 +200,8 @@ def _summary(p: Prepared, arrays: dict[str, NDArray[Any]], stats: StepStats, sta
         "frames": len(arrays["time"]), "simulated_time_s": float(arrays["time"][-1]) if len(arrays["time"]) else 0.0,
         "integrator": {"name": p.scene.integrator, "dt": p.dt if p.scene.integrator == "explicit" else None,
                        "dt_min": stats.dt_min if stats.steps else None, "dt_max": stats.dt_max or None,
-                       "stable_step": p.model.stable_step()},
+                       "stable_step": p.model.stable_step() if hasattr(p.model, "stable_step") else None},
         "model": {"type": p.scene.model.type, "nodes": structure.n_nodes,
-                  "elements": len(structure.segments), "dofs": 3 * structure.n_nodes},
+                  "elements": len(structure.segments), "dofs": p.model.n_dof},
         "nodes": structure.selectors, "metrics": metrics, "scene": scene_as_dict(p.scene),
     }

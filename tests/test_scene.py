@@ -74,7 +74,7 @@ def test_overrides_set_values() -> None:
     assert scene.model.axial == "linear" and scene.materials[0].viscosity == 0.0
 
 
-@pytest.mark.parametrize("override", ["net.packing=2", "model.type=cosserat", "simulation.type=static",
+@pytest.mark.parametrize("override", ["net.packing=2", "model.type=cosserat", "simulation.integrator=bogus",
                                       "net.nodes_per_side=1"])
 def test_cli_bad_input_exits_nonzero_and_writes_nothing(tmp_path: Path, override: str,
                                                         capsys: pytest.CaptureFixture[str]) -> None:

@@ -35,13 +35,17 @@ class VtkSeries:
         self.cells = [("line", np.asarray(segments, dtype=np.int64))]
         self.entries: list[tuple[float, str]] = []
 
-    def write(self, time: float, positions: NDArray[np.float64], velocities: NDArray[np.float64],
-              tension: NDArray[np.float64]) -> None:
-        """Write one frame; ``tension`` (E,) [N] goes in as cell data."""
+    def write(self, time: float, frame: dict[str, NDArray[np.float64]]) -> None:
+        """Write one frame: ``positions`` (N, 3) as points, ``velocities`` as point data
+        ``velocity``, and every per-element array (``tension`` [N], ``curvature``, ``twist``) as
+        cell data."""
         name = f"vtk/frame_{len(self.entries):05d}.vtu"
-        mesh = meshio.Mesh(np.asarray(positions, float), self.cells,
-                           point_data={"velocity": np.asarray(velocities, float)},
-                           cell_data={"tension": [np.asarray(tension, float)]})
+        n_cells = len(self.cells[0][1])
+        cell_data = {k: [np.asarray(a, float)] for k, a in frame.items()
+                     if k in ("tension", "curvature", "twist") and len(a) == n_cells}
+        mesh = meshio.Mesh(np.asarray(frame["positions"], float), self.cells,
+                           point_data={"velocity": np.asarray(frame["velocities"], float)},
+                           cell_data=cell_data)
         meshio.write(self.directory / name, mesh, file_format="vtu", compression=None)
         self.entries.append((time, name))
         self.write_pvd()

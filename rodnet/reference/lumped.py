@@ -16,6 +16,8 @@ from numpy.typing import NDArray
 
 from rodnet.config import Scene
 from rodnet.errors import SceneError
+from rodnet.assembly import SparsityPattern
+from rodnet.kernels.cable import cable_tangents, element_blocks
 from rodnet.kernels.tension import axial_energy, axial_force
 from rodnet.topology import Structure
 
@@ -77,6 +79,11 @@ class LumpedModel:
         _, _, e, rate = self.segment_kinematics(x, v)
         return axial_force(e, rate, self.EA, self.etaA, self.kink_strain, self.tension_only)
 
+    def frame_arrays(self, x: FloatArray, v: FloatArray) -> dict[str, FloatArray]:
+        """What a saved frame holds: positions, velocities (N, 3) and segment ``tension`` (E,)."""
+        vv = np.asarray(v).reshape(-1, 3)
+        return {"positions": np.array(x), "velocities": np.array(vv), "tension": self.tension(x, vv)}
+
     def external_force(self, t: float) -> FloatArray:
         """Gravity plus ramped dead loads at time ``t`` [N], (N, 3)."""
         f = self.gravity_force.copy()
@@ -130,6 +137,65 @@ class LumpedModel:
         zeta = c * omega / (2.0 * k)
         steps = 2.0 / np.where(omega > 0, omega, np.inf) * (np.sqrt(1.0 + zeta**2) - zeta)
         return float(np.min(steps))
+
+    # --- the System protocol of rodnet.integrate.system (configuration q = positions (N, 3)) ---
+
+    @property
+    def n_dof(self) -> int:
+        return 3 * self.structure.n_nodes
+
+    @property
+    def force_scale(self) -> float:
+        return float(self.EA.max())
+
+    @property
+    def free(self) -> NDArray[np.bool_]:
+        return np.repeat(self.inv_mass > 0.0, 3)
+
+    @property
+    def dof_mass(self) -> FloatArray:
+        return np.repeat(self.mass, 3)
+
+    def generalized_force(self, x: FloatArray, v: FloatArray, t: float, load_factor: float = 1.0) -> FloatArray:
+        """g = f_int - f_ext (n_dof,) for flat velocities ``v`` (n_dof,)."""
+        vv = v.reshape(-1, 3)
+        _, direction, e, rate = self.segment_kinematics(x, vv)
+        n = axial_force(e, rate, self.EA, self.etaA, self.kink_strain, self.tension_only)
+        return -(self._incidence @ (n[:, None] * direction) + load_factor * self.external_force(t)).ravel()
+
+    def tangents(self, x: FloatArray, v: FloatArray, t: float, load_factor: float = 1.0):
+        """g (n_dof,) and K = dg/dx, C = dg/dv on the free DOFs (cable tangents, no load stiffness)."""
+        vv = v.reshape(-1, 3)
+        a, b = self.segments[:, 0], self.segments[:, 1]
+        n, g_b, K_bb, C_bb = cable_tangents(x[a], x[b], vv[a], vv[b], self.rest_length, self.EA,
+                                            self.etaA, self.kink_strain, self.tension_only)
+        g = np.zeros((self.structure.n_nodes, 3))
+        np.add.at(g, b, g_b)
+        np.add.at(g, a, -g_b)
+        g -= load_factor * self.external_force(t)
+        pattern = self._pattern
+        return g.ravel(), pattern.matrix([element_blocks(K_bb)]), pattern.matrix([element_blocks(C_bb)])
+
+    def retract(self, x: FloatArray, dq: FloatArray) -> FloatArray:
+        return x + dq.reshape(-1, 3)
+
+    def tangent_operator(self, dq: FloatArray) -> sp.csr_matrix:
+        return sp.identity(int(self.free.sum()), format="csr")
+
+    def active_set(self, x: FloatArray, v: FloatArray) -> int:
+        return hash(np.packbits(self.tension(x, v.reshape(-1, 3)) > 0.0).tobytes())
+
+    def rotation_dofs(self) -> NDArray[np.int64]:
+        return np.zeros(0, np.int64)
+
+    @property
+    def _pattern(self) -> SparsityPattern:
+        cached = self.__dict__.get("_pattern_cache")
+        if cached is None:
+            dofs = (3 * self.segments[:, :, None] + np.arange(3)).reshape(-1, 6)
+            cached = SparsityPattern([dofs], self.n_dof, self.free)
+            object.__setattr__(self, "_pattern_cache", cached)
+        return cached
 
     @property
     def _incidence(self) -> sp.csr_matrix:

@@ -59,7 +59,7 @@ def test_compiled_forces_equal_numpy_forces() -> None:
     for axial in ("tension-only", "linear"):
         p = prepare(scene_from_toml(small_net_toml(n=2), [f"model.axial={axial}",
                                                           "simulation.gravity=[0, 0, -9.81]"]))
-        x = p.model.structure.rest_positions * rng.uniform(0.98, 1.02, p.x0.shape)
+        x = p.structure.rest_positions * rng.uniform(0.98, 1.02, p.q0.shape)
         v = rng.normal(size=x.shape)
         f = np.empty_like(x)
         accumulate_forces(x, v, 0.3, f, *p.model.kernel_arguments())
@@ -106,9 +106,9 @@ def test_stable_step_separates_stable_from_unstable() -> None:
     p = prepare(scene_from_toml(small_net_toml(duration=0.3)))
     limit = p.model.stable_step()
     times = frame_times(0.3, 0.01)
-    integrate_explicit(p.model, p.x0, p.v0, times, 0.95 * limit, lambda *a: None)
+    integrate_explicit(p.model, p.q0, p.v0, times, 0.95 * limit, lambda *a: None)
     with pytest.raises(SimulationFailed, match="diverged"):
-        integrate_explicit(p.model, p.x0, p.v0, times, 2.5 * limit, lambda *a: None)
+        integrate_explicit(p.model, p.q0, p.v0, times, 2.5 * limit, lambda *a: None)
 
 
 @pytest.fixture(scope="module")

@@ -1,0 +1,1 @@
+"""Element formulations: one file per element type, knowing its DOF layout."""

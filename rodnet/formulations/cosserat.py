@@ -1,0 +1,217 @@
+"""Rods of two-node Simo-Reissner elements as a :class:`~rodnet.integrate.system.System`.
+
+Configuration: positions ``x`` (N, 3) and unit quaternions ``quat`` (R, 4) of the rotation nodes.
+DOFs: ``3 N`` translations (global) then ``3 R`` rotations (body frame). Every element joins a
+position node and a rotation node at each end (``pos_nodes``, ``rot_nodes``), so knots that share a
+position but not a rotation (pinned knots) fit the same layout. Element physics:
+``elements/cosserat/FORMULATION.md``; kernels :mod:`rodnet.kernels.cosserat`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import NDArray
+
+from rodnet.assembly import SparsityPattern, assemble_vector
+from rodnet.kernels import so3
+from rodnet.kernels.cosserat import internal_force_and_tangents, strain_energy, stress_resultants
+from rodnet.kernels.cosserat_strain import (kinematics, reduce_velocity, strain_rates_from_kinematics,
+                                            strains_from_kinematics)
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class RodConfiguration:
+    """Positions (N, 3) [m] and unit quaternions (R, 4) (w, x, y, z)."""
+
+    x: FloatArray
+    quat: FloatArray
+
+
+@dataclass(frozen=True)
+class CosseratModel:
+    """Read-only arrays of a rod structure.
+
+    Attributes
+    ----------
+    pos_nodes, rot_nodes : (E, 2) int
+        Position and rotation node of each element end.
+    rest_length : (E,) float
+    reference_strain : (E, 6) float
+        ``[Gamma0, K0]`` of the stress-free state.
+    stiffness : (E, 6) float
+        ``[EA, GA, GA, GJ, EI, EI]`` [N, N m^2].
+    tau : (E,) float
+        Kelvin-Voigt retardation time viscosity / E [s].
+    node_mass : (N,) float, rotary_inertia : (R, 3) float
+        Lumped mass [kg] and body-frame principal rotary inertia [kg m^2].
+    free : (n_dof,) bool
+    gravity : (3,) float
+    load_nodes (L,) int, load_force (L, 3), load_moment (L, 3), load_ramp (L,)
+        Dead loads: global force [N] at a position node, global-axis moment [N m] at the
+        rotation node of the same index (rods: rotation node = position node).
+    """
+
+    pos_nodes: NDArray[np.int64]
+    rot_nodes: NDArray[np.int64]
+    rest_length: FloatArray
+    reference_strain: FloatArray
+    stiffness: FloatArray
+    tau: FloatArray
+    node_mass: FloatArray
+    rotary_inertia: FloatArray
+    free: NDArray[np.bool_]
+    gravity: FloatArray
+    load_nodes: NDArray[np.int64]
+    load_force: FloatArray
+    load_moment: FloatArray
+    load_ramp: FloatArray
+    tension_only: bool
+    kink_strain: float
+
+    @property
+    def n_nodes(self) -> int:
+        return len(self.node_mass)
+
+    @property
+    def n_rot(self) -> int:
+        return len(self.rotary_inertia)
+
+    @property
+    def n_dof(self) -> int:
+        return 3 * (self.n_nodes + self.n_rot)
+
+    @property
+    def dof_mass(self) -> FloatArray:
+        return np.concatenate([np.repeat(self.node_mass, 3), self.rotary_inertia.ravel()])
+
+    @property
+    def force_scale(self) -> float:
+        return float(self.stiffness[:, 0].max())
+
+    @property
+    def element_dofs(self) -> NDArray[np.int64]:
+        """(E, 12) global DOFs ``[x_a, theta_a, x_b, theta_b]`` of every element."""
+        t = 3 * self.pos_nodes[:, :, None] + np.arange(3)
+        r = 3 * (self.n_nodes + self.rot_nodes[:, :, None]) + np.arange(3)
+        return np.concatenate([t[:, 0], r[:, 0], t[:, 1], r[:, 1]], axis=1)
+
+    def rotation_dofs(self) -> NDArray[np.int64]:
+        return np.arange(3 * self.n_nodes, self.n_dof)
+
+    # --- element state -------------------------------------------------------------------
+
+    def _element_state(self, q: RodConfiguration, v: FloatArray) -> tuple[FloatArray, ...]:
+        x = q.x[self.pos_nodes]
+        quat = q.quat[self.rot_nodes]
+        return x, quat, v[self.element_dofs]
+
+    def _load_scale(self, t: float) -> FloatArray:
+        ramp = self.load_ramp
+        return np.where(ramp > 0.0, np.minimum(1.0, t / np.where(ramp > 0.0, ramp, 1.0)), 1.0)
+
+    def _external(self, q: RodConfiguration, t: float, load_factor: float) -> tuple[FloatArray, FloatArray]:
+        """External force vector (n_dof,) and the body-frame load moments (L, 3)."""
+        f = np.zeros(self.n_dof)
+        f[:3 * self.n_nodes] = (self.node_mass[:, None] * self.gravity).ravel()
+        s = load_factor * self._load_scale(t)
+        body_moment = np.einsum("lji,lj->li", so3.quat_to_matrix(q.quat[self.load_nodes]),
+                                s[:, None] * self.load_moment)
+        for k in range(3):
+            np.add.at(f, 3 * self.load_nodes + k, s * self.load_force[:, k])
+            np.add.at(f, 3 * (self.n_nodes + self.load_nodes) + k, body_moment[:, k])
+        return f, body_moment
+
+    def _gyroscopic(self, v: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """``W x (J W)`` (R, 3) and its derivative ``hat(W) J - hat(J W)`` (R, 3, 3)."""
+        W = v[3 * self.n_nodes:].reshape(-1, 3)
+        JW = self.rotary_inertia * W
+        return np.cross(W, JW), so3.hat(W) * self.rotary_inertia[:, None, :] - so3.hat(JW)
+
+    # --- the System protocol -------------------------------------------------------------
+
+    def generalized_force(self, q: RodConfiguration, v: FloatArray, t: float,
+                          load_factor: float = 1.0) -> FloatArray:
+        g, _, _ = self._assemble(q, v, t, load_factor, need_matrices=False)
+        return g
+
+    def tangents(self, q: RodConfiguration, v: FloatArray, t: float, load_factor: float = 1.0):
+        return self._assemble(q, v, t, load_factor, need_matrices=True)
+
+    def _assemble(self, q, v, t, load_factor, need_matrices):  # type: ignore[no-untyped-def]
+        x, quat, ve = self._element_state(q, v)
+        f_el, K_el, C_el = internal_force_and_tangents(
+            self.rest_length, self.reference_strain, self.stiffness, self.tau, x, quat, ve,
+            self.tension_only, self.kink_strain)
+        g = assemble_vector(self.element_dofs, f_el, self.n_dof)
+        gyro, d_gyro = self._gyroscopic(v)
+        g[3 * self.n_nodes:] += gyro.ravel()
+        f_ext, body_moment = self._external(q, t, load_factor)
+        g -= f_ext
+        if not need_matrices:
+            return g, None, None
+        load_block = np.zeros((self.n_rot, 3, 3))
+        np.add.at(load_block, self.load_nodes, -so3.hat(body_moment))
+        K = self._pattern.matrix([K_el, load_block])
+        C = self._pattern.matrix([C_el, d_gyro])
+        return g, K, C
+
+    def retract(self, q: RodConfiguration, dq: FloatArray) -> RodConfiguration:
+        n3 = 3 * self.n_nodes
+        return RodConfiguration(q.x + dq[:n3].reshape(-1, 3),
+                                so3.retract(q.quat, dq[n3:].reshape(-1, 3)))
+
+    def tangent_operator(self, dq: FloatArray) -> sp.csr_matrix:
+        blocks = np.concatenate([np.tile(np.eye(3), (self.n_nodes, 1, 1)),
+                                 so3.dexp(dq[3 * self.n_nodes:].reshape(-1, 3))])
+        n = len(blocks)
+        full = sp.bsr_matrix((blocks, np.arange(n), np.arange(n + 1)), shape=(3 * n, 3 * n)).tocsr()
+        keep = np.flatnonzero(self.free)
+        return full[keep][:, keep]
+
+    def active_set(self, q: RodConfiguration, v: FloatArray) -> int:
+        return hash(np.packbits(self.axial_force(q, v) > 0.0).tobytes()) if self.tension_only else 0
+
+    # --- output and checks ---------------------------------------------------------------
+
+    def section_state(self, q: RodConfiguration, v: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Strains ``[Gamma, K]`` (E, 6) and stress resultants ``[N, M]`` (E, 6) incl. damping."""
+        x, quat, ve = self._element_state(q, v)
+        psi, R_m, gap = kinematics(x, quat)
+        eps = strains_from_kinematics(psi, gap, self.rest_length, self.reference_strain)
+        rate = strain_rates_from_kinematics(psi, R_m, gap, reduce_velocity(ve), self.rest_length)
+        return eps, stress_resultants(self.stiffness, self.tau, eps, rate, self.tension_only,
+                                      self.kink_strain)
+
+    def frame_arrays(self, q: RodConfiguration, v: FloatArray) -> dict[str, FloatArray]:
+        """What a saved frame holds: positions, velocities, rotations, and per element the axial
+        force ``tension`` [N], ``curvature`` |(K_1, K_2)| [1/m] and ``twist`` K_0 [1/m]."""
+        eps, stress = self.section_state(q, v)
+        return {"positions": q.x.copy(), "velocities": v[:3 * self.n_nodes].reshape(-1, 3).copy(),
+                "rotations": q.quat.copy(), "tension": stress[:, 0],
+                "curvature": np.hypot(eps[:, 4], eps[:, 5]), "twist": eps[:, 3]}
+
+    def axial_force(self, q: RodConfiguration, v: FloatArray) -> FloatArray:
+        """Axial force N [N] of every element (the ``tension`` output), (E,)."""
+        return self.section_state(q, v)[1][:, 0]
+
+    def energy(self, q: RodConfiguration, v: FloatArray) -> dict[str, float]:
+        """Kinetic (translational + rotational) and elastic energy [J]."""
+        x, quat, _ = self._element_state(q, v)
+        elastic = strain_energy(self.rest_length, self.reference_strain, self.stiffness, x, quat,
+                                self.tension_only, self.kink_strain)
+        kinetic = 0.5 * float(np.sum(self.dof_mass * v * v))
+        return {"kinetic": kinetic, "elastic": float(elastic.sum())}
+
+    @property
+    def _pattern(self) -> SparsityPattern:
+        cached = self.__dict__.get("_pattern_cache")
+        if cached is None:
+            rot_blocks = (3 * (self.n_nodes + np.arange(self.n_rot))[:, None] + np.arange(3))
+            cached = SparsityPattern([self.element_dofs, rot_blocks], self.n_dof, self.free)
+            object.__setattr__(self, "_pattern_cache", cached)
+        return cached

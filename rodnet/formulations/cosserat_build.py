@@ -1,0 +1,109 @@
+"""Build a :class:`~rodnet.formulations.cosserat.CosseratModel` from a scene's structure.
+
+Node triads: ``d1`` along the centreline (the mean of the adjacent segment directions), ``d2``, ``d3``
+carried along each rod by parallel transport from a first triad whose ``d2`` is the global z axis
+projected normal to ``d1`` (y when ``d1`` is along z). The stress-free strains are measured from these
+triads, so any choice is stress-free; parallel transport keeps the reference twist zero.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rodnet.config import Scene
+from rodnet.errors import SceneError
+from rodnet.formulations.cosserat import CosseratModel, RodConfiguration
+from rodnet.kernels import so3
+from rodnet.kernels.cosserat_strain import reference_strains
+from rodnet.topology import Structure
+
+FloatArray = NDArray[np.float64]
+
+
+def node_triads(points: FloatArray, segments: NDArray[np.int64], thread: NDArray[np.int64]) -> FloatArray:
+    """Rotation matrices (N, 3, 3) of the nodes of chains of segments (columns d1, d2, d3)."""
+    n = len(points)
+    tangent = np.zeros((n, 3))
+    d = points[segments[:, 1]] - points[segments[:, 0]]
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    np.add.at(tangent, segments[:, 0], d)
+    np.add.at(tangent, segments[:, 1], d)
+    tangent /= np.linalg.norm(tangent, axis=1)[:, None]
+    R = np.tile(np.eye(3), (n, 1, 1))
+    done = np.zeros(n, bool)
+    for th in np.unique(thread):
+        chain = segments[thread == th]
+        nodes = np.concatenate([chain[:1, 0], chain[:, 1]])
+        R[nodes[0]] = _first_triad(tangent[nodes[0]])
+        for prev, node in zip(nodes[:-1], nodes[1:]):
+            if not done[node]:
+                R[node] = _transport(tangent[prev], tangent[node]) @ R[prev]
+                done[node] = True
+        done[nodes[0]] = True
+    return R
+
+
+def _first_triad(t: FloatArray) -> FloatArray:
+    ref = np.array([0.0, 0.0, 1.0]) if abs(t[2]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    d2 = ref - (ref @ t) * t
+    d2 /= np.linalg.norm(d2)
+    return np.column_stack([t, d2, np.cross(t, d2)])
+
+
+def _transport(a: FloatArray, b: FloatArray) -> FloatArray:
+    """The smallest rotation taking unit vector ``a`` to ``b``."""
+    axis = np.cross(a, b)
+    s, c = np.linalg.norm(axis), float(a @ b)
+    if s < 1e-14:
+        return np.eye(3)
+    return so3.so3_exp((axis / s * np.arctan2(s, c))[None])[0]
+
+
+def build_cosserat(scene: Scene, structure: Structure) -> tuple[CosseratModel, RodConfiguration, FloatArray]:
+    """The rod model, its initial configuration and initial velocities (n_dof,)."""
+    if structure.net is not None:
+        raise SceneError("model.type", "cosserat", "nets of Cosserat threads are not available in "
+                         "this version: use model.type = 'lumped' for [net] scenes")
+    mats = scene.materials
+    m_idx = structure.material
+    bending, torsion = scene.model.bending, scene.model.torsion
+    ea = np.array([m.EA for m in mats])[m_idx]
+    ga = np.array([m.GA for m in mats])[m_idx]
+    gj = np.array([m.GJ if torsion else 0.0 for m in mats])[m_idx]
+    ei = np.array([m.EI if bending else 0.0 for m in mats])[m_idx]
+    stiffness = np.column_stack([ea, ga, ga, gj, ei, ei])
+    tau = np.array([m.viscosity / m.youngs_modulus for m in mats])[m_idx]
+    rho_a = np.array([m.rhoA for m in mats])[m_idx]
+    rho_i = np.array([m.rhoI for m in mats])[m_idx]
+    le = structure.rest_length
+    seg = structure.segments
+    n = structure.n_nodes
+    node_mass = structure.point_mass.copy()
+    rotary = np.zeros((n, 3))
+    for end in (0, 1):
+        np.add.at(node_mass, seg[:, end], 0.5 * rho_a * le)
+        np.add.at(rotary, seg[:, end], 0.5 * le[:, None] * rho_i[:, None] * np.array([2.0, 1.0, 1.0]))
+    R0 = node_triads(structure.rest_positions, seg, structure.thread)
+    quat0 = so3.quat_from_matrix(R0)
+    free = np.ones(6 * n, bool)
+    for i, s in enumerate(scene.supports):
+        node = structure.node(s.node, f"supports[{i}].node")
+        free[3 * node:3 * node + 3] = False
+        if s.fix == "clamp":
+            free[3 * (n + node):3 * (n + node) + 3] = False
+    load_nodes = np.array([structure.node(l.node, f"loads[{i}].node") for i, l in enumerate(scene.loads)],
+                          dtype=np.int64)
+    model = CosseratModel(
+        pos_nodes=seg, rot_nodes=seg, rest_length=le,
+        reference_strain=reference_strains(le, structure.rest_positions[seg], quat0[seg]),
+        stiffness=stiffness, tau=tau, node_mass=node_mass, rotary_inertia=rotary, free=free,
+        gravity=np.asarray(scene.simulation.gravity, float), load_nodes=load_nodes,
+        load_force=np.array([l.force for l in scene.loads], float).reshape(-1, 3),
+        load_moment=np.array([l.moment for l in scene.loads], float).reshape(-1, 3),
+        load_ramp=np.array([l.ramp for l in scene.loads], float),
+        tension_only=scene.model.axial == "tension-only", kink_strain=scene.model.kink_strain)
+    v0 = np.zeros(6 * n)
+    v0[:3 * n] = structure.velocities.ravel()
+    v0[~free] = 0.0
+    return model, RodConfiguration(structure.positions.copy(), quat0), v0

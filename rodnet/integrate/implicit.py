@@ -1,0 +1,246 @@
+"""Implicit integrators on a :class:`~rodnet.integrate.system.System`: Lie-group generalized-alpha,
+backward Euler, and the static solver with load stepping.
+
+Generalized-alpha follows Arnold & Brüls (2007) in the Chung-Hulbert parametrisation
+(``elements/cosserat/FORMULATION.md``, time integration): with ``vd`` the true acceleration
+dv/dt and ``a`` the algorithmic one,
+
+    (1 - alpha_m) a1 + alpha_m a0 = (1 - alpha_f) vd1 + alpha_f vd0
+    v1 = v0 + h (1 - gamma) a0 + h gamma a1
+    q1 = q0 o exp(h [v0 + h (1/2 - beta) a0 + h beta a1])
+    M vd1 + g(q1, v1, t1) = 0,
+
+solved by Newton for vd1 with the iteration matrix M + h gamma c C + h^2 beta c K T(dq),
+c = (1 - alpha_f) / (1 - alpha_m). The consistent start is a0 = vd0 = -M^-1 g(q0, v0, 0).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import NDArray
+
+from rodnet.errors import SimulationFailed
+from rodnet.integrate.frames import FrameSink, ProgressSink, StepStats
+from rodnet.integrate.newton import LinearSolver, NewtonOptions, NewtonResult, newton
+from rodnet.integrate.system import System
+
+FloatArray = NDArray[np.float64]
+
+
+def chung_hulbert(rho_inf: float) -> tuple[float, float, float, float]:
+    """``(alpha_m, alpha_f, gamma, beta)`` of generalized-alpha for spectral radius ``rho_inf``."""
+    alpha_m = (2.0 * rho_inf - 1.0) / (rho_inf + 1.0)
+    alpha_f = rho_inf / (rho_inf + 1.0)
+    gamma = 0.5 + alpha_f - alpha_m
+    return alpha_m, alpha_f, gamma, 0.25 * (gamma + 0.5) ** 2
+
+
+@dataclass
+class MotionState:
+    """Configuration, velocity (n_dof,), true and algorithmic accelerations (n_dof,)."""
+
+    q: Any
+    v: FloatArray
+    vd: FloatArray
+    a: FloatArray
+
+
+@dataclass
+class Stepper:
+    """One implicit scheme on one system, with its Newton settings and linear solver."""
+
+    system: System
+    scheme: str                     # "generalized-alpha" | "backward-euler"
+    rho_inf: float = 0.7
+    options: NewtonOptions = field(default_factory=NewtonOptions)
+    solver: LinearSolver = field(default_factory=LinearSolver)
+
+    def initial(self, q0: Any, v0: FloatArray, t0: float) -> MotionState:
+        """The start state with the consistent acceleration vd0 = -M^-1 g(q0, v0, t0)."""
+        s = self.system
+        v = np.where(s.free, v0, 0.0)
+        g = s.generalized_force(q0, v, t0)
+        vd = np.where(s.free, -g / np.where(s.dof_mass > 0, s.dof_mass, 1.0), 0.0)
+        return MotionState(q0, v, vd, vd.copy())
+
+    def step(self, state: MotionState, t: float, h: float) -> tuple[MotionState, NewtonResult]:
+        """Advance ``state`` from ``t`` to ``t + h``; the result says whether Newton converged."""
+        s, free = self.system, self.system.free
+        M = s.dof_mass[free]
+        if self.scheme == "generalized-alpha":
+            am, af, gamma, beta = chung_hulbert(self.rho_inf)
+            c = (1.0 - af) / (1.0 - am)
+        n = s.n_dof
+
+        def unpack(u: FloatArray) -> MotionState:
+            vd = np.zeros(n)
+            vd[free] = u
+            if self.scheme == "backward-euler":
+                v = np.zeros(n)
+                v[free] = u
+                return MotionState(s.retract(state.q, h * v), v, (v - state.v) / h, (v - state.v) / h)
+            a = (af * state.vd - am * state.a + (1.0 - af) * vd) / (1.0 - am)
+            v = state.v + h * (1.0 - gamma) * state.a + h * gamma * a
+            dq = h * (state.v + h * (0.5 - beta) * state.a + h * beta * a)
+            return MotionState(s.retract(state.q, dq), v, vd, a)
+
+        def increment(u: FloatArray) -> FloatArray:
+            new = unpack(u)
+            return h * new.v if self.scheme == "backward-euler" else \
+                h * (state.v + h * (0.5 - beta) * state.a + h * beta * new.a)
+
+        def evaluate(u: FloatArray, need_matrix: bool) -> tuple[FloatArray, sp.csr_matrix | None]:
+            new = unpack(u)
+            if not need_matrix:
+                return M * new.vd[free] + s.generalized_force(new.q, new.v, t + h)[free], None
+            g, K, C = s.tangents(new.q, new.v, t + h)
+            KT = K @ s.tangent_operator(increment(u))
+            if self.scheme == "backward-euler":
+                S = sp.diags(M / h) + C + h * KT
+            else:
+                S = sp.diags(M) + (h * gamma * c) * C + (h * h * beta * c) * KT
+            return M * new.vd[free] + g[free], S.tocsr()
+
+        rot = s.rotation_dofs()
+        rot_free = s.free[rot] if len(rot) else np.zeros(0, bool)
+        reduced_rot = np.flatnonzero(np.isin(np.flatnonzero(free), rot[rot_free]))
+        d_increment = h if self.scheme == "backward-euler" else h * h * beta * c
+
+        def step_limit(du: FloatArray) -> float:
+            if len(reduced_rot) == 0:
+                return 1.0
+            largest = d_increment * np.max(np.abs(du[reduced_rot]))
+            return 1.0 if largest <= self.options.max_rotation else self.options.max_rotation / largest
+
+        u0 = state.v[free] if self.scheme == "backward-euler" else state.vd[free]
+        scale = max(float(np.max(np.abs(M * state.vd[free]), initial=0.0)),
+                    float(np.max(np.abs(s.generalized_force(state.q, state.v, t)[free]), initial=0.0)),
+                    1e-2 * s.force_scale)
+        result = newton(evaluate, u0, scale, self.solver, self.options, step_limit,
+                        lambda u: s.active_set(unpack(u).q, unpack(u).v))
+        return unpack(result.u), result
+
+
+def integrate_implicit(stepper: Stepper, q0: Any, v0: FloatArray, times: NDArray[np.float64],
+                       dt: float, adaptive: bool, on_frame: FrameSink,
+                       on_progress: ProgressSink | None = None, dt_max: float | None = None,
+                       min_dt: float = 1e-12) -> StepStats:
+    """March from ``times[0]`` to ``times[-1]`` landing on every frame time.
+
+    Adaptive: a step whose Newton solve fails is retried with half the step; after three steps
+    that each converged within three iterations the step grows by 1.5 (up to ``dt_max``).
+
+    Raises
+    ------
+    SimulationFailed
+        When a step fails at a fixed step size, or the step falls below ``min_dt``.
+    """
+    stats = StepStats()
+    state = stepper.initial(q0, v0, float(times[0]))
+    on_frame(float(times[0]), state.q, state.v)
+    t, h, easy = float(times[0]), dt, 0
+    dt_max = dt_max if dt_max is not None else max(dt, float(np.diff(times).max(initial=dt)))
+    for t_frame in times[1:]:
+        while t < t_frame - 1e-12 * max(1.0, abs(t_frame)):
+            h_try = min(h, t_frame - t)
+            new, result = stepper.step(state, t, h_try)
+            stats.newton_iterations += result.iterations
+            stats.factorizations += result.factorizations
+            if not result.converged:
+                stats.rejected_steps += 1
+                if not adaptive or h_try / 2 < min_dt:
+                    raise SimulationFailed(
+                        f"Newton's method failed at t = {t:.6g} s with dt = {h_try:.3g} s: "
+                        f"{result.message}" + ("" if adaptive else "; reduce simulation.dt or set "
+                                               "simulation.adaptive = true"))
+                h, easy = h_try / 2, 0
+                continue
+            state, t = new, t + h_try
+            stats.record_step(h_try)
+            easy = easy + 1 if result.iterations <= 3 else 0
+            if adaptive and easy >= 3 and h_try == h:
+                h, easy = min(1.5 * h, dt_max), 0
+            if on_progress is not None:
+                on_progress(t, h_try, stats)
+        on_frame(float(t_frame), state.q, state.v)
+    return stats
+
+
+def solve_static(system: System, q0: Any, load_steps: int, options: NewtonOptions,
+                 on_frame: FrameSink, max_halvings: int = 6) -> StepStats:
+    """Equilibrium ``g(q, 0, load) = 0`` under loads raised in ``load_steps`` equal increments.
+
+    Each increment is solved by Newton from the previous equilibrium; a failed increment is
+    split in two (up to ``max_halvings`` times). ``on_frame(load, q, v)`` receives the
+    equilibrium at the end of every requested increment.
+    """
+    stats, solver = StepStats(), LinearSolver()
+    zero = np.zeros(system.n_dof)
+    free = system.free
+    q = q0
+    loads = system.generalized_force(q0, zero, 1.0, 1.0) - system.generalized_force(q0, zero, 1.0, 0.0)
+    scale = max(float(np.max(np.abs(loads))), 1e-2 * system.force_scale)
+    on_frame(0.0, q, zero)
+    done, target_steps = 0.0, [k / load_steps for k in range(1, load_steps + 1)]
+    for target in target_steps:
+        lam, halvings = done, 0
+        while lam < target - 1e-12:
+            trial = min(target, lam + (target - done) / 2 ** halvings)
+            q_new, result = _static_increment(system, q, trial, options, solver, scale)
+            stats.newton_iterations += result.iterations
+            stats.factorizations += result.factorizations
+            if not result.converged:
+                halvings += 1
+                stats.rejected_steps += 1
+                if halvings > max_halvings:
+                    raise SimulationFailed(f"no static equilibrium found at load factor {trial:.4g}: "
+                                           f"{result.message}")
+                continue
+            q, lam = q_new, trial
+            stats.record_step(trial)
+        done = target
+        on_frame(target, q, zero)
+    return stats
+
+
+def _static_increment(system: System, q_start: Any, load: float, options: NewtonOptions,
+                      solver: LinearSolver, scale: float) -> tuple[Any, NewtonResult]:
+    """Newton on the configuration: each iterate is re-based so rotations can grow without limit."""
+    free, zero = system.free, np.zeros(system.n_dof)
+    base = {"q": q_start, "u": np.zeros(int(free.sum()))}
+
+    def moved(u: FloatArray) -> Any:
+        dq = np.zeros(system.n_dof)
+        dq[free] = u - base["u"]
+        return system.retract(base["q"], dq)
+
+    def evaluate(u: FloatArray, need_matrix: bool) -> tuple[FloatArray, sp.csr_matrix | None]:
+        q = moved(u)
+        if not need_matrix:
+            return system.generalized_force(q, zero, 1.0, load)[free], None
+        g, K, _ = system.tangents(q, zero, 1.0, load)
+        dq = np.zeros(system.n_dof)
+        dq[free] = u - base["u"]
+        return g[free], (K @ system.tangent_operator(dq)).tocsr()
+
+    def rebase(u: FloatArray) -> None:
+        base["q"], base["u"] = moved(u), u.copy()
+
+    rot = np.flatnonzero(np.isin(np.flatnonzero(free), system.rotation_dofs()))
+
+    def step_limit(du: FloatArray) -> float:
+        largest = float(np.max(np.abs(du[rot]), initial=0.0))
+        return 1.0 if largest <= options.max_rotation else options.max_rotation / largest
+
+    try:
+        result = newton(evaluate, np.zeros(int(free.sum())), scale, solver, options, step_limit,
+                        on_accept=rebase)
+    except RuntimeError as exc:  # exactly singular tangent
+        raise SimulationFailed(
+            "the static tangent stiffness is singular: the structure is not supported against "
+            "rigid motion (add [[supports]]) or a DOF has no stiffness") from exc
+    return moved(result.u), result

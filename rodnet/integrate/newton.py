@@ -1,0 +1,152 @@
+"""Newton's method with a sparse LU, factorisation reuse and a backtracking line search.
+
+The unknown is a plain vector ``u`` on the free DOFs; the caller's ``evaluate(u)`` returns the
+residual (and, on request, the iteration matrix). Reuse: the LU of an earlier iteration (or step)
+is kept while residuals contract by at least ``reuse_contraction`` and the model's active set
+(slack/taut threads, contacts) is unchanged; otherwise it is refreshed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True, slots=True)
+class NewtonOptions:
+    """Tolerances and limits; the residual is converged when ``|r|_inf <= atol + rtol * scale``."""
+
+    rtol: float = 1e-8
+    atol: float = 1e-10
+    max_iterations: int = 12
+    reuse_factorization: bool = False
+    reuse_contraction: float = 0.3
+    max_rotation: float = np.pi / 4
+
+
+@dataclass
+class NewtonResult:
+    u: FloatArray
+    converged: bool
+    iterations: int
+    factorizations: int
+    residual_norm: float
+    message: str = ""
+
+
+class LinearSolver:
+    """Sparse LU of the iteration matrix, kept between calls until refreshed."""
+
+    def __init__(self) -> None:
+        self.lu: spla.SuperLU | None = None
+        self.factorizations = 0
+
+    def factorize(self, matrix: sp.csr_matrix) -> None:
+        """Factorise; the symmetric ordering with diagonal pivots suits the (nearly symmetric,
+        pattern-symmetric) tangents, partial pivoting is the fall-back."""
+        self.factorizations += 1
+        csc = matrix.tocsc()
+        try:
+            self.lu = spla.splu(csc, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                                options={"SymmetricMode": True})
+            probe = np.ones(csc.shape[0])
+            if np.isfinite(self.lu.solve(probe)).all():
+                return
+        except RuntimeError:
+            pass
+        self.lu = spla.splu(csc)  # raises RuntimeError when exactly singular
+
+    def solve(self, rhs: FloatArray) -> FloatArray:
+        assert self.lu is not None
+        return self.lu.solve(rhs)
+
+
+def newton(evaluate: Callable[[FloatArray, bool], tuple[FloatArray, sp.csr_matrix | None]],
+           u0: FloatArray, scale: float, solver: LinearSolver, options: NewtonOptions,
+           step_limit: Callable[[FloatArray], float] | None = None,
+           active_set: Callable[[FloatArray], int] | None = None,
+           on_accept: Callable[[FloatArray], None] | None = None) -> NewtonResult:
+    """Solve ``r(u) = 0``.
+
+    Parameters
+    ----------
+    evaluate : callable
+        ``evaluate(u, need_matrix) -> (r, S)``: residual (n,) and, when ``need_matrix``,
+        the iteration matrix S (n, n).
+    u0 : (n,) float
+        Starting guess.
+    scale : float
+        Force scale of the problem for the relative tolerance.
+    step_limit : callable, optional
+        ``step_limit(du) -> s <= 1``: the largest fraction of the update ``du`` allowed
+        (caps rotation increments).
+    active_set : callable, optional
+        Fingerprint of the non-smooth state at ``u``; a change refreshes a reused factorisation.
+    on_accept : callable, optional
+        Told every accepted iterate (lets the caller re-base a configuration).
+    """
+    u = np.array(u0, dtype=float)
+    start_factorizations = solver.factorizations
+    tol = options.atol + options.rtol * scale
+    fresh = not options.reuse_factorization or solver.lu is None
+    r, S = evaluate(u, fresh)
+    norm = float(np.max(np.abs(r), initial=0.0))
+    fingerprint = active_set(u) if active_set is not None else 0
+    for iteration in range(1, options.max_iterations + 1):
+        if not np.isfinite(norm):
+            return NewtonResult(u, False, iteration - 1, solver.factorizations - start_factorizations,
+                                norm, "non-finite residual")
+        if norm <= tol:
+            return NewtonResult(u, True, iteration - 1, solver.factorizations - start_factorizations, norm)
+        if fresh:
+            if S is None:
+                _, S = evaluate(u, True)
+            solver.factorize(S)
+        du = -solver.solve(r)
+        if step_limit is not None:
+            du *= min(1.0, step_limit(du))
+        u, r_new, norm_new = _line_search(evaluate, solver, u, du)
+        if on_accept is not None:
+            on_accept(u)
+        contraction = norm_new / norm if norm > 0 else 0.0
+        new_fingerprint = active_set(u) if active_set is not None else 0
+        fresh = (not options.reuse_factorization or contraction > options.reuse_contraction
+                 or new_fingerprint != fingerprint)
+        fingerprint, r, norm, S = new_fingerprint, r_new, norm_new, None
+    converged = norm <= tol
+    return NewtonResult(u, converged, options.max_iterations,
+                        solver.factorizations - start_factorizations, norm,
+                        "" if converged else f"no convergence in {options.max_iterations} iterations "
+                        f"(residual {norm:.3g} N, tolerance {tol:.3g} N)")
+
+
+def _line_search(evaluate, solver, u, du):  # type: ignore[no-untyped-def]
+    """Deuflhard's natural monotonicity test: accept the damped step ``u + alpha du`` when the
+    simplified Newton correction there, computed with the same factorisation, is smaller than
+    ``(1 - alpha / 4) |du|``; halve ``alpha`` up to four times. Unlike a test on the residual
+    norm it is invariant to the scaling of the equations, so a stiff axial residual after a
+    large rotation does not stall the iteration."""
+    size = float(np.linalg.norm(du))
+    best = None
+    alpha = 1.0
+    for _ in range(5):
+        trial = u + alpha * du
+        r, _ = evaluate(trial, False)
+        n = float(np.max(np.abs(r), initial=0.0))
+        if np.isfinite(n):
+            correction = float(np.linalg.norm(solver.solve(r)))
+            if correction <= (1.0 - 0.25 * alpha) * size or size == 0.0:
+                return trial, r, n
+            if best is None or correction < best[3]:
+                best = (trial, r, n, correction)
+        alpha *= 0.5
+    if best is None:
+        return u + du, np.full_like(u, np.nan), float("nan")
+    return best[:3]

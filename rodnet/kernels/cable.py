@@ -1,0 +1,66 @@
+"""Cable (axial-only) segment: internal force and its tangents, vectorised over segments.
+
+The force law is :mod:`rodnet.kernels.tension`; the tangents are ``elements/cable/FORMULATION.md``
+(stiffness and damping matrices). Used by the lumped model's implicit integrators and by rods
+without bending and torsion. The residual convention is ``g = f_int``: ``-N t`` at the start node
+and ``+N t`` at the end node (the forces the segment receives from its nodes).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rodnet.kernels.tension import axial_force, ramp
+
+FloatArray = NDArray[np.float64]
+
+
+def cable_tangents(x_a: FloatArray, x_b: FloatArray, v_a: FloatArray, v_b: FloatArray,
+                   rest_length: FloatArray, EA: FloatArray, etaA: FloatArray,
+                   kink_strain: float, tension_only: bool,
+                   ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Axial force and the end-node blocks of the internal force and its tangents.
+
+    Parameters
+    ----------
+    x_a, x_b, v_a, v_b : (E, 3) float
+        End positions [m] and velocities [m/s].
+    rest_length, EA, etaA : (E,) float
+        l0 [m], axial stiffness [N], viscosity * A [N s].
+
+    Returns
+    -------
+    N : (E,) float
+        Axial force [N].
+    g_b : (E, 3) float
+        Internal force at the end node (``-g_b`` at the start node).
+    K_bb, C_bb : (E, 3, 3) float
+        d g_b / d x_b and d g_b / d v_b; the element blocks are ``[[K, -K], [-K, K]]``.
+    """
+    d = x_b - x_a
+    length = np.sqrt(np.einsum("ij,ij->i", d, d))
+    t = d / length[:, None]
+    dv = v_b - v_a
+    strain = length / rest_length - 1.0
+    rate = np.einsum("ij,ij->i", dv, t) / rest_length
+    n = axial_force(strain, rate, EA, etaA, kink_strain, tension_only)
+    if tension_only:
+        r, slope = ramp(strain, kink_strain)
+        curvature = np.where((strain > 0) & (strain < kink_strain), 1.0 / max(kink_strain, 1e-300), 0.0)
+        active = n > 0.0
+    else:
+        slope, curvature, active = np.ones_like(strain), np.zeros_like(strain), np.ones(len(n), bool)
+    transverse = np.eye(3)[None] - t[:, :, None] * t[:, None, :]
+    rate_grad = np.einsum("eij,ej->ei", transverse, dv) / (length * rest_length)[:, None]
+    dn_dx = ((EA * slope + etaA * curvature * rate) / rest_length)[:, None] * t \
+        + (etaA * slope)[:, None] * rate_grad
+    dn_dx *= active[:, None]
+    K = t[:, :, None] * dn_dx[:, None, :] + (n / length)[:, None, None] * transverse
+    C = ((etaA * slope * active) / rest_length)[:, None, None] * t[:, :, None] * t[:, None, :]
+    return n, n[:, None] * t, K, C
+
+
+def element_blocks(K_bb: FloatArray) -> FloatArray:
+    """(E, 6, 6) element matrix ``[[K, -K], [-K, K]]`` from the end-node block (E, 3, 3)."""
+    return np.block([[K_bb, -K_bb], [-K_bb, K_bb]])
