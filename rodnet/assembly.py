@@ -47,6 +47,8 @@ class SparsityPattern:
         row, col = np.concatenate(rows), np.concatenate(cols)
         key = row * self.n_free + col
         unique, self._slot = np.unique(key, return_inverse=True)
+        self._keys = unique
+        self._block_maps: dict[int, tuple[IndexArray, ...]] = {}
         self.nnz = len(unique)
         self._indices = (unique % self.n_free).astype(np.int32)
         counts = np.bincount(unique // self.n_free, minlength=self.n_free)
@@ -58,6 +60,36 @@ class SparsityPattern:
         values = np.concatenate([b.reshape(-1)[keep] for b, keep in zip(blocks, self._keep)])
         data = np.bincount(self._slot, weights=values, minlength=self.nnz)
         return sp.csr_matrix((data, self._indices, self._indptr), shape=(self.n_free, self.n_free))
+
+
+    def right_multiply_blocks(self, matrix: sp.csr_matrix, triples: IndexArray,
+                              blocks: FloatArray) -> sp.csr_matrix:
+        """``matrix @ T`` for T block diagonal: identity except the 3 x 3 ``blocks`` (B, 3, 3)
+        on the reduced DOF ``triples`` (B, 3). ``matrix`` must have this pattern and every
+        row that touches one DOF of a triple must touch all three (true for element blocks)."""
+        rows_of, cols_of, others, block_of, local = self._block_map(triples)
+        data = matrix.data.copy()
+        gathered = matrix.data[others]                      # (m, 3): A[r, triple_b[k]]
+        data[cols_of] = np.einsum("mk,mk->m", gathered, blocks[block_of, :, local])
+        return sp.csr_matrix((data, matrix.indices, matrix.indptr), shape=matrix.shape)
+
+    def _block_map(self, triples: IndexArray) -> tuple[IndexArray, ...]:
+        cached = self._block_maps.get(id(triples))
+        if cached is not None:
+            return cached
+        n = self.n_free
+        row, col = self._keys // n, self._keys % n
+        owner = np.full(n, -1)
+        owner[triples.ravel()] = np.repeat(np.arange(len(triples)), 3)
+        position = np.full(n, -1)
+        position[triples.ravel()] = np.tile(np.arange(3), len(triples))
+        entries = np.flatnonzero(owner[col] >= 0)
+        block_of, local = owner[col[entries]], position[col[entries]]
+        partner_keys = row[entries, None] * n + triples[block_of]
+        others = np.searchsorted(self._keys, partner_keys)
+        cached = (row[entries], entries, others, block_of, local)
+        self._block_maps[id(triples)] = cached
+        return cached
 
 
 def assemble_vector(dofs: IndexArray, local: FloatArray, n_dof: int) -> FloatArray:

@@ -17,7 +17,8 @@ from numpy.typing import NDArray
 
 from rodnet.assembly import SparsityPattern, assemble_vector
 from rodnet.kernels import so3
-from rodnet.kernels.cosserat import internal_force_and_tangents, strain_energy, stress_resultants
+from rodnet.kernels.cosserat import (internal_force, internal_force_and_tangents, strain_energy,
+                                     stress_resultants)
 from rodnet.kernels.cosserat_strain import (kinematics, reduce_velocity, strain_rates_from_kinematics,
                                             strains_from_kinematics)
 
@@ -144,9 +145,12 @@ class CosseratModel:
 
     def _assemble(self, q, v, t, load_factor, need_matrices):  # type: ignore[no-untyped-def]
         x, quat, ve = self._element_state(q, v)
-        f_el, K_el, C_el = internal_force_and_tangents(
-            self.rest_length, self.reference_strain, self.stiffness, self.tau, x, quat, ve,
-            self.tension_only, self.kink_strain)
+        args = (self.rest_length, self.reference_strain, self.stiffness, self.tau, x, quat, ve,
+                self.tension_only, self.kink_strain)
+        if need_matrices:
+            f_el, K_el, C_el = internal_force_and_tangents(*args)
+        else:
+            f_el = internal_force(*args)
         g = assemble_vector(self.element_dofs, f_el, self.n_dof)
         gyro, d_gyro = self._gyroscopic(v)
         g[3 * self.n_nodes:] += gyro.ravel()
@@ -172,6 +176,24 @@ class CosseratModel:
         full = sp.bsr_matrix((blocks, np.arange(n), np.arange(n + 1)), shape=(3 * n, 3 * n)).tocsr()
         keep = np.flatnonzero(self.free)
         return full[keep][:, keep]
+
+    def times_tangent_operator(self, K: sp.csr_matrix, dq: FloatArray) -> sp.csr_matrix:
+        """``K @ tangent_operator(dq)`` without forming the operator (same pattern as K)."""
+        rot = dq[3 * self.n_nodes:].reshape(-1, 3)[self._free_rot_nodes]
+        return self._pattern.right_multiply_blocks(K, self._free_rot_triples, so3.dexp(rot))
+
+    @property
+    def _free_rot_nodes(self) -> NDArray[np.int64]:
+        return np.flatnonzero(self.free[3 * self.n_nodes:].reshape(-1, 3).all(axis=1))
+
+    @property
+    def _free_rot_triples(self) -> NDArray[np.int64]:
+        cached = self.__dict__.get("_triples_cache")
+        if cached is None:
+            dofs = 3 * (self.n_nodes + self._free_rot_nodes)[:, None] + np.arange(3)
+            cached = self._pattern.reduced_index[dofs]
+            object.__setattr__(self, "_triples_cache", cached)
+        return cached
 
     def active_set(self, q: RodConfiguration, v: FloatArray) -> int:
         return hash(np.packbits(self.axial_force(q, v) > 0.0).tobytes()) if self.tension_only else 0

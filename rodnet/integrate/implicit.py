@@ -71,34 +71,37 @@ class Stepper:
         """Advance ``state`` from ``t`` to ``t + h``; the result says whether Newton converged."""
         s, free = self.system, self.system.free
         M = s.dof_mass[free]
-        if self.scheme == "generalized-alpha":
-            am, af, gamma, beta = chung_hulbert(self.rho_inf)
-            c = (1.0 - af) / (1.0 - am)
+        am, af, gamma, beta = chung_hulbert(self.rho_inf)
+        c = (1.0 - af) / (1.0 - am)
         n = s.n_dof
 
-        def unpack(u: FloatArray) -> MotionState:
-            vd = np.zeros(n)
-            vd[free] = u
+        cache: dict[str, Any] = {}
+
+        def unpack(u: FloatArray) -> tuple[MotionState, FloatArray]:
+            """The state at the end of the step for unknown ``u``, and the increment dq."""
+            if cache.get("u") is not None and np.array_equal(cache["u"], u):
+                return cache["state"], cache["dq"]
             if self.scheme == "backward-euler":
                 v = np.zeros(n)
                 v[free] = u
-                return MotionState(s.retract(state.q, h * v), v, (v - state.v) / h, (v - state.v) / h)
-            a = (af * state.vd - am * state.a + (1.0 - af) * vd) / (1.0 - am)
-            v = state.v + h * (1.0 - gamma) * state.a + h * gamma * a
-            dq = h * (state.v + h * (0.5 - beta) * state.a + h * beta * a)
-            return MotionState(s.retract(state.q, dq), v, vd, a)
-
-        def increment(u: FloatArray) -> FloatArray:
-            new = unpack(u)
-            return h * new.v if self.scheme == "backward-euler" else \
-                h * (state.v + h * (0.5 - beta) * state.a + h * beta * new.a)
+                vd = (v - state.v) / h
+                dq, a = h * v, vd
+            else:
+                vd = np.zeros(n)
+                vd[free] = u
+                a = (af * state.vd - am * state.a + (1.0 - af) * vd) / (1.0 - am)
+                v = state.v + h * (1.0 - gamma) * state.a + h * gamma * a
+                dq = h * (state.v + h * (0.5 - beta) * state.a + h * beta * a)
+            new = MotionState(s.retract(state.q, dq), v, vd, a)
+            cache.update(u=u.copy(), state=new, dq=dq)
+            return new, dq
 
         def evaluate(u: FloatArray, need_matrix: bool) -> tuple[FloatArray, sp.csr_matrix | None]:
-            new = unpack(u)
+            new, dq = unpack(u)
             if not need_matrix:
                 return M * new.vd[free] + s.generalized_force(new.q, new.v, t + h)[free], None
             g, K, C = s.tangents(new.q, new.v, t + h)
-            KT = K @ s.tangent_operator(increment(u))
+            KT = _times_tangent_operator(s, K, dq)
             if self.scheme == "backward-euler":
                 S = sp.diags(M / h) + C + h * KT
             else:
@@ -117,12 +120,20 @@ class Stepper:
             return 1.0 if largest <= self.options.max_rotation else self.options.max_rotation / largest
 
         u0 = state.v[free] if self.scheme == "backward-euler" else state.vd[free]
-        scale = max(float(np.max(np.abs(M * state.vd[free]), initial=0.0)),
-                    float(np.max(np.abs(s.generalized_force(state.q, state.v, t)[free]), initial=0.0)),
-                    1e-2 * s.force_scale)
-        result = newton(evaluate, u0, scale, self.solver, self.options, step_limit,
-                        lambda u: s.active_set(unpack(u).q, unpack(u).v))
-        return unpack(result.u), result
+        # at the converged previous step M vd = -g, so |M vd| measures the forces acting
+        scale = max(float(np.max(np.abs(M * state.vd[free]), initial=0.0)), 1e-2 * s.force_scale)
+        def active_set(u: FloatArray) -> int:
+            new, _ = unpack(u)
+            return s.active_set(new.q, new.v)
+
+        result = newton(evaluate, u0, scale, self.solver, self.options, step_limit, active_set)
+        return unpack(result.u)[0], result
+
+
+def _times_tangent_operator(system: System, K: sp.csr_matrix, dq: FloatArray) -> sp.csr_matrix:
+    """``K T(dq)``; models with rotations provide a fast product."""
+    fast = getattr(system, "times_tangent_operator", None)
+    return fast(K, dq) if fast is not None else K @ system.tangent_operator(dq)
 
 
 def integrate_implicit(stepper: Stepper, q0: Any, v0: FloatArray, times: NDArray[np.float64],
@@ -225,7 +236,7 @@ def _static_increment(system: System, q_start: Any, load: float, options: Newton
         g, K, _ = system.tangents(q, zero, 1.0, load)
         dq = np.zeros(system.n_dof)
         dq[free] = u - base["u"]
-        return g[free], (K @ system.tangent_operator(dq)).tocsr()
+        return g[free], _times_tangent_operator(system, K, dq).tocsr()
 
     def rebase(u: FloatArray) -> None:
         base["q"], base["u"] = moved(u), u.copy()
