@@ -17,6 +17,12 @@ def _parser() -> argparse.ArgumentParser:
     run = sub.add_parser("run", help="run a scene file")
     run.add_argument("scene", type=Path, help="scene TOML file")
     demo = sub.add_parser("demo", help="run the built-in reference deployment")
+    val = sub.add_parser("validate", help="run the validation cases and write a report")
+    val.add_argument("--cases", type=Path, default=Path("validation/cases"),
+                     help="folder of cases (default: validation/cases)")
+    val.add_argument("-o", "--output", type=Path, default=Path("validation/reports"),
+                     help="report folder (default: validation/reports)")
+    val.add_argument("--fast", action="store_true", help="skip the cases marked slow")
     for p in (run, demo):
         p.add_argument("-o", "--output", type=Path, default=None,
                        help="output directory (default: the scene's output.directory)")
@@ -34,6 +40,8 @@ def demo_scene_text() -> str:
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit status (0 ok, 1 failed run, 2 bad input, 130 interrupted)."""
     args = _parser().parse_args(argv)
+    if args.command == "validate":
+        return _validate(args.cases, args.output, args.fast)
     from rodnet.errors import SceneError
     from rodnet.scene import load_scene, scene_from_toml
 
@@ -59,6 +67,33 @@ def main(argv: list[str] | None = None) -> int:
     if result.status != "ok":
         return EXIT_INTERRUPTED if "interrupted" in result.message else EXIT_FAILED
     return 0
+
+
+def _validate(cases: Path, output: Path, fast: bool) -> int:
+    """Run every case under ``cases``; write ``output/validation.md``; 0 when all checks pass."""
+    import tempfile
+
+    from rodnet.validate import case_folders, read_expected, report, run_case
+
+    folders = [f for f in case_folders(cases) if not (fast and read_expected(f).get("slow", False))]
+    if not folders:
+        print(f"rodnet: bad input: no validation cases (scene.toml + expected.toml) under {cases}",
+              file=sys.stderr)
+        return EXIT_BAD_INPUT
+    results, failed_runs = [], []
+    for folder in folders:
+        print(f"rodnet: validating {folder.name} ...", file=sys.stderr)
+        result, checks = run_case(folder, Path(tempfile.mkdtemp(prefix=f"rodnet-{folder.name}-")))
+        results += checks
+        if result.status != "ok":
+            failed_runs.append(f"{folder.name}: {result.message}")
+    text = report(results)
+    output.mkdir(parents=True, exist_ok=True)
+    (output / "validation.md").write_text("# Validation report\n\n" + text + "\n")
+    print(text)
+    for line in failed_runs:
+        print(f"rodnet: run failed: {line}", file=sys.stderr)
+    return 0 if all(r.passed for r in results) and not failed_runs else EXIT_FAILED
 
 
 def _report(result) -> None:  # type: ignore[no-untyped-def]

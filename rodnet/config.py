@@ -167,9 +167,16 @@ class MaterialSpec:
         return self.rotary_inertia_per_length or self.density * self.second_moment
 
     @property
+    def retardation_time(self) -> float:
+        """Kelvin-Voigt retardation time tau = viscosity / E [s]: every section resultant gets a
+        viscous part tau times its stiffness times the strain rate."""
+        return self.viscosity / self.youngs_modulus
+
+    @property
     def damping_coefficient(self) -> float:
-        """Axial Kelvin-Voigt coefficient eta A [N s]: a segment of rest length l0 has c = eta A / l0."""
-        return self.viscosity * self.area
+        """Axial Kelvin-Voigt coefficient tau EA [N s] (= viscosity A for the solid section): a
+        segment of rest length l0 has c = tau EA / l0."""
+        return self.retardation_time * self.EA
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

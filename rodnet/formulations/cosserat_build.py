@@ -73,7 +73,7 @@ def build_cosserat(scene: Scene, structure: Structure) -> tuple[CosseratModel, R
     gj = np.array([m.GJ if torsion else 0.0 for m in mats])[m_idx]
     ei = np.array([m.EI if bending else 0.0 for m in mats])[m_idx]
     stiffness = np.column_stack([ea, ga, ga, gj, ei, ei])
-    tau = np.array([m.viscosity / m.youngs_modulus for m in mats])[m_idx]
+    tau = np.array([m.retardation_time for m in mats])[m_idx]
     rho_a = np.array([m.rhoA for m in mats])[m_idx]
     rho_i = np.array([m.rhoI for m in mats])[m_idx]
     le = structure.rest_length

@@ -199,7 +199,8 @@ class LumpedModel:
 
     @property
     def _incidence(self) -> sp.csr_matrix:
-        """Signed node-segment incidence (N, E): +1 at the segment's end node, -1 at its start."""
+        """Signed node-segment incidence (N, E): +1 at the segment's start node, -1 at its end, so
+        that ``incidence @ (N t)`` is the force the segments exert on the nodes."""
         cached = self.__dict__.get("_incidence_cache")
         if cached is None:
             n_seg = len(self.segments)

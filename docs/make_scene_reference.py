@@ -1,0 +1,333 @@
+"""Write ``docs/scene_reference.md`` from the scene dataclasses in :mod:`rodnet.config`.
+
+Keys, types, defaults and section docstrings come from the code; the description and unit of
+every key come from ``DESCRIPTIONS`` below. ``tests/test_docs.py`` regenerates the page in memory
+and fails when the committed file differs, or when a key has no description.
+
+Usage: ``python docs/make_scene_reference.py`` (from the repository root or anywhere else).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+import types
+import typing
+from pathlib import Path
+from typing import Any, Literal
+
+from rodnet import config
+
+OUTPUT = Path(__file__).with_name("scene_reference.md")
+
+# "section.key": (unit, description). Units are SI; "-" means dimensionless, "" not a quantity.
+DESCRIPTIONS: dict[str, tuple[str, str]] = {
+    # [simulation]
+    "simulation.type": (
+        "", '"dynamic": integrate in time. "static" (load-stepped equilibrium) is refused by this '
+        "version."),
+    "simulation.duration": ("s", "Simulated time of a dynamic run; > 0."),
+    "simulation.dt": (
+        "s", "Time step of the explicit integrator when `adaptive = false`; > 0. A scene whose `dt` "
+        "exceeds the explicit stability limit (S10) is refused. The step used is `dt` shrunk so "
+        "that a whole number of steps fits each frame interval. Not used when `adaptive = true`, "
+        "nor by `rk45`."),
+    "simulation.adaptive": (
+        "", "Explicit integrator: `true` sets the step to `explicit_safety` times the stability "
+        "limit (S10) of the scene, computed once before the run; `false` uses `dt`. Not used by "
+        "`rk45`, which always controls its step with `rtol`."),
+    "simulation.integrator": (
+        "", 'Not set: "explicit" for `model.type = "lumped"`, "generalized-alpha" otherwise. This '
+        'version runs "explicit" (symplectic Euler, compiled) and "rk45" (scipy\'s adaptive '
+        'Dormand-Prince, the reference); "generalized-alpha" and "backward-euler" are refused.'),
+    "simulation.rho_inf": (
+        "-", "Spectral radius at infinite frequency of generalized-alpha, in [0, 1]. Not used in "
+        "this version."),
+    "simulation.gravity": ("m/s^2", "Uniform gravitational acceleration; node `i` gets the force `m_i g`."),
+    "simulation.load_steps": (
+        "", "Static runs: number of load increments, >= 1. Not used in this version."),
+    "simulation.explicit_safety": (
+        "-", "Explicit integrator with `adaptive = true`: the step is this fraction of the "
+        "stability limit (S10), in (0, 1]. The limit is an estimate, not a bound; see "
+        "[the lumped model](lumped_model.md#time-step)."),
+    "simulation.rtol": (
+        "-", "`rk45`: relative tolerance, in (0, 1). The absolute tolerance is `rtol` x 1e-3 "
+        "(metres for positions, m/s for velocities)."),
+    # [model]
+    "model.type": (
+        "", '"lumped": point masses joined by tension-only spring-dampers '
+        "([formulation](../elements/spring/FORMULATION.md)). \"cosserat\" (rod elements with "
+        "bending and torsion) is refused by this version, and it is the default, so a scene must "
+        'set "lumped".'),
+    "model.elements_per_thread": (
+        "", "Segments per net thread (mesh threads and corner threads), >= 1. `[[rods]]` give "
+        "their own count in `elements`."),
+    "model.bending": (
+        "", "Cosserat model only. No effect on the lumped model, which has no bending stiffness."),
+    "model.torsion": (
+        "", "Cosserat model only. No effect on the lumped model, which has no torsional "
+        "stiffness."),
+    "model.axial": (
+        "", '"tension-only": `N = max(0, EA r(e) + viscosity A r\'(e) de/dt)`, a thread never '
+        'pushes (S5). "linear": `N = EA e + viscosity A de/dt`, also resists compression (S3).'),
+    "model.knots": (
+        "", '"rigid": threads share the knot rotation; "pinned": shared position only. Cosserat '
+        "model only: in the lumped model every knot is a single node without rotation, a pin."),
+    "model.kink_strain": (
+        "-", "Kink strain `delta` of the C1 ramp that smooths the tension-only law at `e = 0` "
+        "(S4), in [0, 0.01); 0 gives the sharp kink. Above `delta` the force is `EA delta / 2` "
+        "lower than the linear law's."),
+    # [[materials]]
+    "materials.name": (
+        "", "Unique, non-empty; named by `net.material` and `rods.material`."),
+    "materials.density": (
+        "kg/m^3", "> 0. Mass per length `rho A` of the solid circular section, unless "
+        "`mass_per_length` is given."),
+    "materials.youngs_modulus": (
+        "Pa", "`E` > 0. Axial stiffness `EA = E A`, unless `axial_stiffness` is given."),
+    "materials.diameter": (
+        "m", "`d` > 0 of the solid circular section, `A = pi d^2 / 4`. `A` also enters the "
+        "viscous coefficient `viscosity A`."),
+    "materials.poisson_ratio": (
+        "-", "`nu` in (-1, 0.5): `G = E / (2 (1 + nu))`; give either this or `shear_modulus`. "
+        "Cosserat model only (shear, torsion); no effect on the lumped model."),
+    "materials.shear_modulus": (
+        "Pa", "`G` > 0; give either this or `poisson_ratio` (neither: `nu = 0.3`). Cosserat model "
+        "only."),
+    "materials.viscosity": (
+        "Pa s", "Kelvin-Voigt viscosity >= 0: the axial force gains `viscosity A de/dt`; a segment "
+        "of rest length `l0` has the dashpot `c = viscosity A / l0` [N s/m]."),
+    "materials.axial_stiffness": (
+        "N", "Override of `EA`, > 0 (braided threads). The viscous coefficient stays "
+        "`viscosity A` with the geometric `A`."),
+    "materials.shear_stiffness": ("N", "Override of `GA`, > 0. Cosserat model only."),
+    "materials.bending_stiffness": ("N m^2", "Override of `EI`, > 0. Cosserat model only."),
+    "materials.torsional_stiffness": ("N m^2", "Override of `GJ`, > 0. Cosserat model only."),
+    "materials.mass_per_length": ("kg/m", "Override of `rho A`, > 0."),
+    "materials.rotary_inertia_per_length": (
+        "kg m", "Override of `rho I`, > 0. Cosserat model only."),
+    # [net]
+    "net.material": ("", "Name of a `[[materials]]` entry; required."),
+    "net.layout": (
+        "", '"square": `Ns` x `Ns` knots; knot `i` is joined to `i+1` (same row) and to `i+Ns`; '
+        "four corner threads join the corner knots to the corner masses."),
+    "net.nodes_per_side": ("", "`Ns`, knots per side, >= 2."),
+    "net.mesh_length": ("m", "Rest length of one mesh thread, > 0."),
+    "net.center": ("m", "Centre of the net, deployed and packed."),
+    "net.direction": (
+        "-", "Shooting direction, non-zero (normalised). The net starts in the plane normal to "
+        "it; mouth area and distance are measured with it."),
+    "net.packing": (
+        "-", "Initial size / deployed size, in (0, 1]. Every initial position is the flat "
+        "deployed layout scaled by `packing` about `center`, so the threads start slack and "
+        "stress-free."),
+    "net.knot_mass": ("kg", "Point mass added at every knot, >= 0."),
+    "net.corner_mass": ("kg", "Each of the four corner masses, > 0."),
+    "net.corner_thread_length": (
+        "m", "Rest length of the thread from a corner knot to its corner mass, > 0; the corner "
+        "mass lies on the extension of the net's diagonal."),
+    "net.launch_speed": (
+        "m/s", "Initial speed of every corner mass, >= 0. Knots and thread nodes start at rest."),
+    "net.launch_angle_deg": (
+        "deg", "Angle between a corner mass's initial velocity and `direction`, tilted outwards "
+        "along the net's diagonal, in [0, 90)."),
+    # [[rods]]
+    "rods.name": (
+        "", 'Unique, non-empty, without ":", not "net". Names the nodes: `"NAME:start"`, '
+        '`"NAME:end"`, `"NAME:i"`.'),
+    "rods.material": ("", "Name of a `[[materials]]` entry; required."),
+    "rods.points": (
+        "m", "Polyline of the stress-free centreline, at least two points, consecutive points "
+        "distinct. The rod starts in this shape."),
+    "rods.elements": (
+        "", "Segments along the whole rod, at least one per polyline segment; spread by arc "
+        "length, every polyline vertex kept as a node."),
+    "rods.velocity": ("m/s", "Initial velocity of every node of the rod."),
+    # [[supports]]
+    "supports.node": ("", "Node selector, e.g. `\"beam:start\"`, `\"net:knot:12\"`."),
+    "supports.fix": (
+        "", '"clamp": position and rotation fixed; "pin": position fixed. The lumped model has no '
+        "rotations, so both fix the position only."),
+    # [[loads]]
+    "loads.node": ("", "Node selector."),
+    "loads.force": ("N", "Dead load: fixed global direction and magnitude."),
+    "loads.moment": (
+        "N m", "Dead moment about a fixed global axis. Must be zero in the lumped model, which has "
+        "no rotations; a non-zero moment is refused."),
+    "loads.ramp": (
+        "s", ">= 0. The load grows linearly from zero to full over this time; 0 applies it in full "
+        "from t = 0."),
+    # [[masses]]
+    "masses.node": ("", "Node selector."),
+    "masses.mass": ("kg", "Point mass added at the node, > 0."),
+    "masses.velocity": (
+        "m/s", "Initial velocity of that node, replacing the rod's or net's; not set: unchanged."),
+    # [output]
+    "output.directory": (
+        "", "Output directory, relative to the working directory; `-o DIR` on the command line "
+        "overrides it."),
+    "output.frame_interval": (
+        "s", "Time between saved frames, > 0; a last frame is saved at `duration` when it is not "
+        "a multiple."),
+    "output.vtk": ("", "Write `vtk/frame_NNNNN.vtu` per frame and `result.pvd`."),
+    "output.picture": (
+        "", "`rodnet` command, a net, a successful run: draw `net.png`, the net at its maximum "
+        "mouth area (pyvista, `viz` extra)."),
+    "output.plot": (
+        "", "`rodnet` command, a net, a successful run: draw `deployment.png`, mouth area and "
+        "distance against time (matplotlib, `viz` extra)."),
+}
+
+HEADER = """\
+# Scene reference
+
+<!-- Generated by docs/make_scene_reference.py from rodnet/config.py. Do not edit by hand:
+     change the code or the descriptions in that script, then run it. -->
+
+A scene is one TOML file with the sections below. Units are SI; angles are in degrees and their
+keys end in `_deg`. Every key can be overridden on the command line, e.g.
+`--set simulation.dt=5e-4` or `--set 'materials[0].viscosity=1e6'`.
+
+Parsing is strict. An unknown section or key, a wrong type or a value out of range is an error
+that names the key (with its section), the value and what is allowed; nothing is run and nothing
+is written. Integers are accepted where a number is expected; an array of three numbers is
+written `[x, y, z]`. "required" keys have no default; "not set" means the key is optional and
+absent unless given. A scene needs a `[net]` or at least one `[[rods]]`, and a `[[materials]]`
+entry for every material they name; the other sections may be left out.
+
+Equation numbers (S1)-(S10) refer to
+[elements/spring/FORMULATION.md](../elements/spring/FORMULATION.md).
+
+Not in this version: the sections `[[bodies]]` (rigid bodies) and `[contact]` are refused with
+an error. Keys that only the Cosserat model, static runs or implicit integrators use are read
+and checked but have no effect; their descriptions say so.
+"""
+
+
+def toml_value(value: Any) -> str:
+    """``value`` written as in a TOML file."""
+    if value is None:
+        return "not set"
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return f'"{value}"'
+    if isinstance(value, (tuple, list)):
+        return "[" + ", ".join(toml_value(v) for v in value) + "]"
+    return repr(value)
+
+
+def type_name(hint: Any) -> str:
+    """A TOML-level name of a type hint of :mod:`rodnet.config`."""
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if origin in (typing.Union, types.UnionType):
+        inner = [a for a in args if a is not type(None)]
+        return type_name(inner[0]) + " (optional)"
+    if origin is Literal:
+        return " or ".join(toml_value(a) for a in args)
+    if origin is tuple:
+        if len(args) == 2 and args[1] is Ellipsis:
+            return f"array of ({type_name(args[0])})"
+        if all(a is float for a in args):
+            return f"array of {len(args)} numbers"
+    names = {float: "number", int: "integer", bool: "boolean", str: "string"}
+    if hint in names:
+        return names[hint]
+    raise TypeError(f"no name for type {hint!r}")
+
+
+def default_text(f: dataclasses.Field) -> str:
+    if f.default is not dataclasses.MISSING:
+        return toml_value(f.default)
+    if f.default_factory is not dataclasses.MISSING:
+        return toml_value(f.default_factory())
+    return "required"
+
+
+def sections() -> list[tuple[str, str, type]]:
+    """``(name, TOML header, dataclass)`` of every section of :class:`rodnet.config.Scene`."""
+    hints = typing.get_type_hints(config.Scene)
+    out = []
+    for f in dataclasses.fields(config.Scene):
+        hint = hints[f.name]
+        origin, args = typing.get_origin(hint), typing.get_args(hint)
+        if origin is tuple and len(args) == 2 and args[1] is Ellipsis:
+            out.append((f.name, f"[[{f.name}]]", args[0]))
+        elif origin in (typing.Union, types.UnionType):
+            out.append((f.name, f"[{f.name}]", next(a for a in args if a is not type(None))))
+        elif dataclasses.is_dataclass(hint):
+            out.append((f.name, f"[{f.name}]", hint))
+        # anything else (``source``) is not a TOML section
+    return out
+
+
+def keys() -> list[str]:
+    """Every ``section.key`` the scene dataclasses define."""
+    return [f"{name}.{f.name}" for name, _, cls in sections() for f in dataclasses.fields(cls)]
+
+
+def missing_descriptions() -> list[str]:
+    return [k for k in keys() if k not in DESCRIPTIONS]
+
+
+def stale_descriptions() -> list[str]:
+    defined = set(keys())
+    return [k for k in DESCRIPTIONS if k not in defined]
+
+
+def _cell(text: str) -> str:
+    return text.replace("|", "\\|").replace("\n", " ")
+
+
+def _derived(cls: type) -> list[str]:
+    """Bullets for the documented properties of ``cls`` (derived quantities)."""
+    lines = []
+    for name, member in inspect.getmembers(cls, lambda m: isinstance(m, property)):
+        doc = inspect.getdoc(member)
+        if doc:
+            lines.append(f"- `{name}`: {' '.join(doc.split())}")
+    return lines
+
+
+def render() -> str:
+    """The whole page."""
+    parts = [HEADER]
+    hints_scene = typing.get_type_hints(config.Scene)
+    optional_tables = {n for n, _, _ in sections()
+                       if typing.get_origin(hints_scene[n]) in (typing.Union, types.UnionType)}
+    for name, header, cls in sections():
+        hints = typing.get_type_hints(cls)
+        doc = " ".join((inspect.getdoc(cls) or "").split())
+        doc = doc.split(":", 1)[1].strip() if doc.startswith("``") and ":" in doc else doc
+        doc = doc[:1].upper() + doc[1:]
+        parts.append(f"## `{header}`\n")
+        if header.startswith("[["):
+            doc += f" An array of tables: repeat `{header}` for each entry."
+        elif name in optional_tables:
+            doc += " Optional section."
+        parts.append(f"{doc}\n")
+        rows = ["| key | type | default | unit | description |", "|---|---|---|---|---|"]
+        for f in dataclasses.fields(cls):
+            unit, text = DESCRIPTIONS.get(f"{name}.{f.name}", ("", "(no description)"))
+            default = default_text(f)
+            default = default if default in ("required", "not set") else f"`{_cell(default)}`"
+            rows.append(f"| `{f.name}` | {_cell(type_name(hints[f.name]))} | {default} | "
+                        f"{_cell(unit)} | {_cell(text)} |")
+        parts.append("\n".join(rows) + "\n")
+        derived = _derived(cls)
+        if derived:
+            parts.append("Derived quantities (read-only, used by the models):\n")
+            parts.append("\n".join(derived) + "\n")
+    return "\n".join(parts)
+
+
+def main() -> None:
+    problems = missing_descriptions()
+    if problems:
+        raise SystemExit(f"no description in DESCRIPTIONS for: {', '.join(problems)}")
+    OUTPUT.write_text(render())
+    print(f"wrote {OUTPUT}")
+
+
+if __name__ == "__main__":
+    main()
