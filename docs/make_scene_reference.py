@@ -52,7 +52,12 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
         "[the lumped model](lumped_model.md#time-step)."),
     "simulation.rtol": (
         "-", "`rk45`: relative tolerance, in (0, 1). The absolute tolerance is `rtol` x 1e-3 "
-        "(metres for positions, m/s for velocities)."),
+        "(metres for positions, m/s for velocities). Implicit integrators: Newton's residual "
+        "tolerance is rtol x 1e-2 (at most 1e-8) of the step's force scale."),
+    "simulation.reuse_factorization": (
+        "-", "Implicit integrators: keep the LU factorisation of the iteration matrix across "
+        "Newton iterations and steps while residuals contract by at least 0.3 and no thread "
+        "changes between slack and taut; refactorise otherwise. Off by default: measure first."),
     # [model]
     "model.type": (
         "", '"lumped": point masses joined by tension-only spring-dampers '

@@ -23,6 +23,8 @@ def _parser() -> argparse.ArgumentParser:
     val.add_argument("-o", "--output", type=Path, default=Path("validation/reports"),
                      help="report folder (default: validation/reports)")
     val.add_argument("--fast", action="store_true", help="skip the cases marked slow")
+    val.add_argument("--no-tests", action="store_true",
+                     help="do not run the slow validation tests (pytest -m slow tests/validation)")
     for p in (run, demo):
         p.add_argument("-o", "--output", type=Path, default=None,
                        help="output directory (default: the scene's output.directory)")
@@ -41,7 +43,15 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit status (0 ok, 1 failed run, 2 bad input, 130 interrupted)."""
     args = _parser().parse_args(argv)
     if args.command == "validate":
-        return _validate(args.cases, args.output, args.fast)
+        status = _validate(args.cases, args.output, args.fast)
+        if not args.no_tests and not args.fast and Path("tests/validation").is_dir():
+            import subprocess
+
+            print("rodnet: running the slow validation tests (pytest -m slow tests/validation)",
+                  file=sys.stderr)
+            done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-m", "slow", "tests/validation"])
+            status = status or (0 if done.returncode in (0, 5) else EXIT_FAILED)
+        return status
     from rodnet.errors import SceneError
     from rodnet.scene import load_scene, scene_from_toml
 

@@ -55,6 +55,7 @@ class SimulationSpec:
     load_steps: int = 10
     explicit_safety: float = 0.5
     rtol: float = 1.0e-6
+    reuse_factorization: bool = False
 
     def __post_init__(self) -> None:
         _positive(self, "duration", "dt", "rtol")

@@ -165,7 +165,8 @@ def run(scene: Scene, directory: str | Path | None = None, *, progress: bool | N
 
 def _integrate(p: Prepared, recorder: Recorder, bar: Progress, stats: StepStats) -> StepStats:
     sim = p.scene.simulation
-    options = NewtonOptions(rtol=min(sim.rtol, 1e-6) * 1e-2)
+    options = NewtonOptions(rtol=min(sim.rtol, 1e-6) * 1e-2,
+                            reuse_factorization=sim.reuse_factorization)
     if sim.type == "static":
         return solve_static(p.model, p.q0, sim.load_steps, options, recorder)
     if p.scene.integrator == "rk45":
