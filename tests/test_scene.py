@@ -74,7 +74,7 @@ def test_overrides_set_values() -> None:
     assert scene.model.axial == "linear" and scene.materials[0].viscosity == 0.0
 
 
-@pytest.mark.parametrize("override", ["net.packing=2", "model.type=cosserat", "simulation.integrator=bogus",
+@pytest.mark.parametrize("override", ["net.packing=2", "model.kink_strain=0.5", "simulation.integrator=bogus",
                                       "net.nodes_per_side=1"])
 def test_cli_bad_input_exits_nonzero_and_writes_nothing(tmp_path: Path, override: str,
                                                         capsys: pytest.CaptureFixture[str]) -> None:
@@ -103,3 +103,9 @@ def test_help_imports_neither_pyvista_nor_trimesh() -> None:
             "assert 'pyvista' not in sys.modules and 'trimesh' not in sys.modules, 'heavy import'\n")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
+
+
+def test_cosserat_net_needs_an_implicit_integrator() -> None:
+    with pytest.raises(SceneError) as info:
+        prepare(scene_from_toml(small_net_toml(), ["model.type=cosserat"]))
+    assert info.value.key == "simulation.integrator" and "generalized-alpha" in str(info.value)

@@ -54,7 +54,11 @@ class CosseratModel:
     gravity : (3,) float
     load_nodes (L,) int, load_force (L, 3), load_moment (L, 3), load_ramp (L,)
         Dead loads: global force [N] at a position node, global-axis moment [N m] at the
-        rotation node of the same index (rods: rotation node = position node).
+        rotation node ``load_rot_nodes`` (L,).
+    end_offset : (E, 2, 4) float or None
+        Constant rotation from a rotation node's triad to the element end's material triad
+        (``R_end = R_node Q``), for knots whose one rotation serves threads of several
+        directions; None: every element end uses its rotation node's triad.
     """
 
     pos_nodes: NDArray[np.int64]
@@ -73,6 +77,8 @@ class CosseratModel:
     load_ramp: FloatArray
     tension_only: bool
     kink_strain: float
+    load_rot_nodes: NDArray[np.int64] | None = None
+    end_offset: FloatArray | None = None
 
     @property
     def n_nodes(self) -> int:
@@ -107,9 +113,28 @@ class CosseratModel:
     # --- element state -------------------------------------------------------------------
 
     def _element_state(self, q: RodConfiguration, v: FloatArray) -> tuple[FloatArray, ...]:
+        """Element end positions (E, 2, 3), material quaternions (E, 2, 4), velocities (E, 12)
+        with angular velocities in the end's material frame."""
         x = q.x[self.pos_nodes]
         quat = q.quat[self.rot_nodes]
-        return x, quat, v[self.element_dofs]
+        ve = v[self.element_dofs]
+        if self.end_offset is not None:
+            quat = so3.quat_multiply(quat, self.end_offset)
+            ve = np.einsum("eji,ej->ei", self._offset_transform, ve)
+        return x, quat, ve
+
+    @property
+    def _offset_transform(self) -> FloatArray:
+        """(E, 12, 12) ``blockdiag(I, Q_a, I, Q_b)``: element-end components to node components."""
+        cached = self.__dict__.get("_offset_cache")
+        if cached is None:
+            Q = so3.quat_to_matrix(self.end_offset)
+            cached = np.zeros((len(Q), 12, 12))
+            for k, (i, j) in enumerate(((0, 3), (6, 9))):
+                cached[:, i:i + 3, i:i + 3] = np.eye(3)
+                cached[:, j:j + 3, j:j + 3] = Q[:, k]
+            object.__setattr__(self, "_offset_cache", cached)
+        return cached
 
     def _load_scale(self, t: float) -> FloatArray:
         ramp = self.load_ramp
@@ -120,12 +145,16 @@ class CosseratModel:
         f = np.zeros(self.n_dof)
         f[:3 * self.n_nodes] = (self.node_mass[:, None] * self.gravity).ravel()
         s = load_factor * self._load_scale(t)
-        body_moment = np.einsum("lji,lj->li", so3.quat_to_matrix(q.quat[self.load_nodes]),
+        body_moment = np.einsum("lji,lj->li", so3.quat_to_matrix(q.quat[self._load_rot]),
                                 s[:, None] * self.load_moment)
         for k in range(3):
             np.add.at(f, 3 * self.load_nodes + k, s * self.load_force[:, k])
-            np.add.at(f, 3 * (self.n_nodes + self.load_nodes) + k, body_moment[:, k])
+            np.add.at(f, 3 * (self.n_nodes + self._load_rot) + k, body_moment[:, k])
         return f, body_moment
+
+    @property
+    def _load_rot(self) -> NDArray[np.int64]:
+        return self.load_nodes if self.load_rot_nodes is None else self.load_rot_nodes
 
     def _gyroscopic(self, v: FloatArray) -> tuple[FloatArray, FloatArray]:
         """``W x (J W)`` (R, 3) and its derivative ``hat(W) J - hat(J W)`` (R, 3, 3)."""
@@ -150,7 +179,13 @@ class CosseratModel:
         if need_matrices:
             f_el, K_el, C_el = internal_force_and_tangents(*args)
         else:
-            f_el = internal_force(*args)
+            f_el, K_el, C_el = internal_force(*args), None, None
+        if self.end_offset is not None:  # back to the rotation nodes' frames
+            T = self._offset_transform
+            f_el = np.einsum("eij,ej->ei", T, f_el)
+            if need_matrices:
+                K_el = T @ K_el @ T.transpose(0, 2, 1)
+                C_el = T @ C_el @ T.transpose(0, 2, 1)
         g = assemble_vector(self.element_dofs, f_el, self.n_dof)
         gyro, d_gyro = self._gyroscopic(v)
         g[3 * self.n_nodes:] += gyro.ravel()
@@ -159,7 +194,7 @@ class CosseratModel:
         if not need_matrices:
             return g, None, None
         load_block = np.zeros((self.n_rot, 3, 3))
-        np.add.at(load_block, self.load_nodes, -so3.hat(body_moment))
+        np.add.at(load_block, self._load_rot, -so3.hat(body_moment))
         K = self._pattern.matrix([K_el, load_block])
         C = self._pattern.matrix([C_el, d_gyro])
         return g, K, C
@@ -214,8 +249,19 @@ class CosseratModel:
         force ``tension`` [N], ``curvature`` |(K_1, K_2)| [1/m] and ``twist`` K_0 [1/m]."""
         eps, stress = self.section_state(q, v)
         return {"positions": q.x.copy(), "velocities": v[:3 * self.n_nodes].reshape(-1, 3).copy(),
-                "rotations": q.quat.copy(), "tension": stress[:, 0],
+                "rotations": q.quat[self._rotation_of_node], "tension": stress[:, 0],
                 "curvature": np.hypot(eps[:, 4], eps[:, 5]), "twist": eps[:, 3]}
+
+    @property
+    def _rotation_of_node(self) -> NDArray[np.int64]:
+        """(N,) the rotation node reported for each position node: its own, or for a node
+        whose thread ends rotate independently (pinned knot, corner mass) the first end's."""
+        cached = self.__dict__.get("_rotation_of_node_cache")
+        if cached is None:
+            cached = np.zeros(self.n_nodes, np.int64)
+            cached[self.pos_nodes[::-1].ravel()] = self.rot_nodes[::-1].ravel()
+            object.__setattr__(self, "_rotation_of_node_cache", cached)
+        return cached
 
     def axial_force(self, q: RodConfiguration, v: FloatArray) -> FloatArray:
         """Axial force N [N] of every element (the ``tension`` output), (E,)."""

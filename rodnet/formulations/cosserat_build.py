@@ -62,9 +62,9 @@ def _transport(a: FloatArray, b: FloatArray) -> FloatArray:
 
 def build_cosserat(scene: Scene, structure: Structure) -> tuple[CosseratModel, RodConfiguration, FloatArray]:
     """The rod model, its initial configuration and initial velocities (n_dof,)."""
-    if structure.net is not None:
-        raise SceneError("model.type", "cosserat", "nets of Cosserat threads are not available in "
-                         "this version: use model.type = 'lumped' for [net] scenes")
+    if structure.net is not None and scene.rods:
+        raise SceneError("rods", [r.name for r in scene.rods], "a Cosserat [net] scene cannot also "
+                         "hold [[rods]] in this version")
     mats = scene.materials
     m_idx = structure.material
     bending, torsion = scene.model.bending, scene.model.torsion
@@ -77,6 +77,11 @@ def build_cosserat(scene: Scene, structure: Structure) -> tuple[CosseratModel, R
     rho_a = np.array([m.rhoA for m in mats])[m_idx]
     rho_i = np.array([m.rhoI for m in mats])[m_idx]
     le = structure.rest_length
+    if structure.net is not None:
+        from rodnet.formulations.cosserat_net import build_cosserat_net
+
+        return build_cosserat_net(scene, structure, {"stiffness": stiffness, "tau": tau,
+                                                     "rho_a": rho_a, "rho_i": rho_i})
     seg = structure.segments
     n = structure.n_nodes
     node_mass = structure.point_mass.copy()

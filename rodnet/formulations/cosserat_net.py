@@ -1,0 +1,118 @@
+"""A net of Cosserat threads: rotation nodes, element-end triads and masses of a square net.
+
+Every thread is straight in the deployed layout, with the material triad ``d1`` along the thread,
+``d2`` along the shooting direction (normal to the net) and ``d3 = d1 x d2``; its interior nodes
+carry that triad. At a knot:
+
+- ``knots = "rigid"``: one rotation node per knot, shared by the four threads, with the triad
+  ``(u, w, d)`` of the net plane; each thread end sees it through a constant offset rotation
+  (``end_offset``), so the knot transmits bending and torsion between threads;
+- ``knots = "pinned"``: every thread end at the knot has its own rotation node (shared position
+  only), so no moment passes from thread to thread, as in the lumped model.
+
+The corner mass is a point mass with no rotary inertia; the corner thread's end there has its own
+rotation node. The packed initial state is the deployed one scaled about the centre: every
+thread keeps its direction, so bending, torsion and shear strains are exactly zero and the axial
+strain is ``packing - 1 < 0``, which the tension-only law turns into zero force.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rodnet.config import Scene
+from rodnet.errors import SceneError
+from rodnet.formulations.cosserat import CosseratModel, RodConfiguration
+from rodnet.kernels import so3
+from rodnet.kernels.cosserat_strain import reference_strains
+from rodnet.topology import Structure, in_plane_axes
+
+FloatArray = NDArray[np.float64]
+
+
+def build_cosserat_net(scene: Scene, structure: Structure, section: dict[str, FloatArray],
+                       ) -> tuple[CosseratModel, RodConfiguration, FloatArray]:
+    """The net model, its packed initial configuration and initial velocities (n_dof,).
+
+    ``section`` holds per-segment ``stiffness`` (E, 6), ``tau`` (E,), ``rho_a`` (E,), ``rho_i`` (E,).
+    """
+    net = structure.net
+    assert net is not None
+    seg, le = structure.segments, structure.rest_length
+    n_nodes, n_seg = structure.n_nodes, len(seg)
+    u, w, d = in_plane_axes(scene.net.direction)  # type: ignore[union-attr]
+    chord = structure.rest_positions[seg[:, 1]] - structure.rest_positions[seg[:, 0]]
+    d1 = chord / le[:, None]
+    thread_R = np.stack([d1, np.broadcast_to(d, d1.shape), np.cross(d1, d)], axis=2)  # (E, 3, 3)
+
+    knot_set = np.zeros(n_nodes, bool)
+    knot_set[net.knots] = True
+    rigid = scene.model.knots == "rigid"
+    rot_nodes = np.empty((n_seg, 2), np.int64)
+    rot_R: list[FloatArray] = []
+    node_rotation = np.full(n_nodes, -1, np.int64)
+    if rigid:
+        node_rotation[net.knots] = np.arange(len(net.knots))
+        rot_R += [np.column_stack([u, w, d])] * len(net.knots)
+    corner_set = np.zeros(n_nodes, bool)
+    corner_set[net.corners] = True
+    for e in range(n_seg):
+        for end in (0, 1):
+            node = seg[e, end]
+            if rigid and knot_set[node]:        # the knot's shared rotation
+                rot_nodes[e, end] = node_rotation[node]
+            elif knot_set[node] or corner_set[node]:  # a thread end's own rotation
+                rot_nodes[e, end] = len(rot_R)
+                rot_R.append(thread_R[e])
+            else:                               # a thread's interior node
+                if node_rotation[node] < 0:
+                    node_rotation[node] = len(rot_R)
+                    rot_R.append(thread_R[e])
+                rot_nodes[e, end] = node_rotation[node]
+    R_nodes = np.array(rot_R)
+    offset_R = np.einsum("enji,enjk->enik", R_nodes[rot_nodes], thread_R[:, None].repeat(2, axis=1))
+    end_offset = so3.quat_from_matrix(offset_R)
+    if np.allclose(offset_R, np.eye(3), atol=1e-14):
+        end_offset = None
+
+    node_mass = structure.point_mass.copy()
+    rotary = np.zeros((len(R_nodes), 3))
+    inertia_end = 0.5 * le[:, None] * section["rho_i"][:, None] * np.array([2.0, 1.0, 1.0])
+    for end in (0, 1):
+        np.add.at(node_mass, seg[:, end], 0.5 * section["rho_a"] * le)
+        in_node = np.einsum("eij,ej,ekj->eik", offset_R[:, end], inertia_end, offset_R[:, end])
+        np.add.at(rotary, rot_nodes[:, end], np.diagonal(in_node, axis1=1, axis2=2))
+
+    quat_nodes = so3.quat_from_matrix(R_nodes)
+    quat_ends = quat_nodes[rot_nodes]
+    if end_offset is not None:
+        quat_ends = so3.quat_multiply(quat_ends, end_offset)
+    n_rot = len(R_nodes)
+    free = np.ones(3 * (n_nodes + n_rot), bool)
+    for i, s in enumerate(scene.supports):
+        node = structure.node(s.node, f"supports[{i}].node")
+        free[3 * node:3 * node + 3] = False
+        if s.fix == "clamp" and node_rotation[node] >= 0:
+            r = node_rotation[node]
+            free[3 * (n_nodes + r):3 * (n_nodes + r) + 3] = False
+    load_nodes = np.array([structure.node(l.node, f"loads[{i}].node") for i, l in enumerate(scene.loads)],
+                          dtype=np.int64)
+    for i, l in enumerate(scene.loads):
+        if any(l.moment) and node_rotation[load_nodes[i]] < 0:
+            raise SceneError(f"loads[{i}].moment", l.moment, "this node has no single rotation "
+                             "(a pinned knot or a corner mass): apply moments to rigid knots or thread nodes")
+    model = CosseratModel(
+        pos_nodes=seg, rot_nodes=rot_nodes, rest_length=le,
+        reference_strain=reference_strains(le, structure.rest_positions[seg], quat_ends),
+        stiffness=section["stiffness"], tau=section["tau"], node_mass=node_mass,
+        rotary_inertia=rotary, free=free, gravity=np.asarray(scene.simulation.gravity, float),
+        load_nodes=load_nodes, load_force=np.array([l.force for l in scene.loads], float).reshape(-1, 3),
+        load_moment=np.array([l.moment for l in scene.loads], float).reshape(-1, 3),
+        load_ramp=np.array([l.ramp for l in scene.loads], float),
+        tension_only=scene.model.axial == "tension-only", kink_strain=scene.model.kink_strain,
+        load_rot_nodes=np.maximum(node_rotation[load_nodes], 0), end_offset=end_offset)
+    v0 = np.zeros(model.n_dof)
+    v0[:3 * n_nodes] = structure.velocities.ravel()
+    v0[~free] = 0.0
+    return model, RodConfiguration(structure.positions.copy(), quat_nodes), v0
