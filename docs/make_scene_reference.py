@@ -153,6 +153,11 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
     "supports.fix": (
         "", '"clamp": position and rotation fixed; "pin": position fixed. The lumped model has no '
         "rotations, so both fix the position only."),
+    "supports.dofs": (
+        "-", "Optional list of the DOFs to fix instead of `fix`'s set: `x`, `y`, `z` (global "
+        "translations) and `r1`, `r2`, `r3` (rotations about the node's material axes; `r1` is the "
+        "twist about the rod axis). E.g. a roller `[\"y\", \"z\"]`, a pin that also stops twist "
+        "`[\"x\", \"y\", \"z\", \"r1\"]`. Lumped models and cables take whole nodes only."),
     # [[loads]]
     "loads.node": ("", "Node selector."),
     "loads.force": ("N", "Dead load: fixed global direction and magnitude."),

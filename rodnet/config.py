@@ -233,12 +233,33 @@ class RodSpec:
         _finite_vector(self, "velocity")
 
 
+SUPPORT_DOFS = ("x", "y", "z", "r1", "r2", "r3")
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
 class SupportSpec:
-    """``[[supports]]``: a fixed node."""
+    """``[[supports]]``: a fixed node; ``dofs`` fixes a subset instead of ``fix``'s set.
+
+    ``x, y, z``: global translations; ``r1, r2, r3``: rotations about the node's material axes
+    (``r1`` about the rod axis d1: twist; ``r2``, ``r3``: bending).
+    """
 
     node: str
     fix: Literal["clamp", "pin"] = "clamp"
+    dofs: tuple[str, ...] | None = None
+
+    def __post_init__(self) -> None:
+        if self.dofs is not None:
+            require(len(self.dofs) > 0 and all(d in SUPPORT_DOFS for d in self.dofs)
+                    and len(set(self.dofs)) == len(self.dofs), "dofs", list(self.dofs),
+                    f"must be a non-empty list of distinct names from {list(SUPPORT_DOFS)}")
+
+    @property
+    def fixed(self) -> tuple[str, ...]:
+        """The fixed DOF names."""
+        if self.dofs is not None:
+            return self.dofs
+        return SUPPORT_DOFS if self.fix == "clamp" else SUPPORT_DOFS[:3]
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

@@ -74,10 +74,30 @@ def prepare(scene: Scene) -> Prepared:
                              f"{limit:.3g} s of this scene; use dt <= {limit:.3g} "
                              f"(about half of it for accurate snap loads) or adaptive = true")
     if sim.type == "static":
+        _check_supported(model, q0, [s.node for s in scene.supports])
         times = np.arange(1, sim.load_steps + 1) / sim.load_steps
     else:
         times = frame_times(sim.duration, scene.output.frame_interval)
     return Prepared(scene, model, q0, v0, times, dt, mass, structure)
+
+
+def _check_supported(model: Any, q0: Any, supports: list[str]) -> None:
+    """Refuse a static scene whose unloaded tangent stiffness is singular (a free rigid motion,
+    a mechanism, or slack tension-only threads): no static equilibrium would be determined."""
+    import scipy.sparse.linalg as spla
+
+    K = model.tangents(q0, np.zeros(model.n_dof), 0.0, 0.0)[1].tocsc()
+    scale = float(np.abs(K.diagonal()).max(initial=0.0))
+    try:
+        pivots = np.abs(spla.splu(K).U.diagonal())
+        singular = int(np.sum(pivots <= 1e-10 * scale)) if scale > 0 else K.shape[0]
+    except RuntimeError:
+        singular = 1
+    if singular:
+        raise SceneError("supports", supports or "none",
+                         f"the structure is not held against rigid motion: its static stiffness has "
+                         f"{singular} zero mode(s). Add [[supports]] (a clamp, or pins that stop every "
+                         "translation and rotation) or run it dynamically")
 
 
 @dataclass

@@ -60,6 +60,15 @@ def _transport(a: FloatArray, b: FloatArray) -> FloatArray:
     return so3.so3_exp((axis / s * np.arctan2(s, c))[None])[0]
 
 
+def support_dofs(names: tuple[str, ...], node: int, rotation: int, n_nodes: int) -> list[int]:
+    """Global DOF indices of the support DOF ``names`` at a position node and its rotation node
+    (``rotation < 0``: the node has no rotation of its own; rotation names are then ignored)."""
+    dofs = [3 * node + "xyz".index(d) for d in names if d in ("x", "y", "z")]
+    if rotation >= 0:
+        dofs += [3 * (n_nodes + rotation) + int(d[1]) - 1 for d in names if d.startswith("r")]
+    return dofs
+
+
 def build_cosserat(scene: Scene, structure: Structure) -> tuple[CosseratModel, RodConfiguration, FloatArray]:
     """The rod model, its initial configuration and initial velocities (n_dof,)."""
     if structure.net is not None and scene.rods:
@@ -94,9 +103,7 @@ def build_cosserat(scene: Scene, structure: Structure) -> tuple[CosseratModel, R
     free = np.ones(6 * n, bool)
     for i, s in enumerate(scene.supports):
         node = structure.node(s.node, f"supports[{i}].node")
-        free[3 * node:3 * node + 3] = False
-        if s.fix == "clamp":
-            free[3 * (n + node):3 * (n + node) + 3] = False
+        free[support_dofs(s.fixed, node, node, n)] = False
     load_nodes = np.array([structure.node(l.node, f"loads[{i}].node") for i, l in enumerate(scene.loads)],
                           dtype=np.int64)
     model = CosseratModel(

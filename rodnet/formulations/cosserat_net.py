@@ -24,6 +24,7 @@ from numpy.typing import NDArray
 from rodnet.config import Scene
 from rodnet.errors import SceneError
 from rodnet.formulations.cosserat import CosseratModel, RodConfiguration
+from rodnet.formulations.cosserat_build import support_dofs
 from rodnet.kernels import so3
 from rodnet.kernels.cosserat_strain import reference_strains
 from rodnet.topology import Structure, in_plane_axes
@@ -92,10 +93,7 @@ def build_cosserat_net(scene: Scene, structure: Structure, section: dict[str, Fl
     free = np.ones(3 * (n_nodes + n_rot), bool)
     for i, s in enumerate(scene.supports):
         node = structure.node(s.node, f"supports[{i}].node")
-        free[3 * node:3 * node + 3] = False
-        if s.fix == "clamp" and node_rotation[node] >= 0:
-            r = node_rotation[node]
-            free[3 * (n_nodes + r):3 * (n_nodes + r) + 3] = False
+        free[support_dofs(s.fixed, node, node_rotation[node], n_nodes)] = False
     load_nodes = np.array([structure.node(l.node, f"loads[{i}].node") for i, l in enumerate(scene.loads)],
                           dtype=np.int64)
     for i, l in enumerate(scene.loads):

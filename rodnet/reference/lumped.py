@@ -222,6 +222,9 @@ def build_lumped(scene: Scene, structure: Structure) -> LumpedModel:
     np.add.at(mass, structure.segments[:, 1], 0.5 * seg_mass)
     inv_mass = 1.0 / mass
     for i, s in enumerate(scene.supports):
+        if s.dofs is not None and set(s.dofs) != {"x", "y", "z"}:
+            raise SceneError(f"supports[{i}].dofs", list(s.dofs), "the lumped model and cable threads "
+                             "support whole nodes only: use fix = 'pin' or dofs = ['x', 'y', 'z']")
         inv_mass[structure.node(s.node, f"supports[{i}].node")] = 0.0
     for i, load in enumerate(scene.loads):
         if any(load.moment):
