@@ -14,6 +14,11 @@ Shapes: n = number of elements. Arguments come in the order model arrays, state 
   else linear; ``kink_strain`` (float): width ``delta`` of the C1 ramp.
 
 Element vectors are ordered ``[dx1, dtheta1, dx2, dtheta2]``, rotations as body-frame increments.
+
+:func:`internal_force`, :func:`internal_force_and_tangents`, :func:`strain_energy` and
+:func:`stress_resultants` run the compiled per-element loops of
+:mod:`rodnet.kernels.cosserat_compiled`; the ``*_numpy`` variants are the same equations in
+NumPy, kept as the reference for the compiled path.
 """
 
 from __future__ import annotations
@@ -25,8 +30,8 @@ from rodnet.kernels.cosserat_strain import (
     reference_strains as reference_strains, strain_matrix as strain_matrix,
     strain_rates_from_kinematics, strains as strains, strains_from_kinematics,
 )
+from rodnet.kernels import cosserat_compiled
 from rodnet.kernels.cosserat_tangent import tangents
-from rodnet.kernels.cosserat_tangent_compiled import tangents as compiled_tangents
 from rodnet.kernels.so3 import FloatArray, dexp_inv_apply
 from rodnet.kernels.tension import axial_energy, axial_force, ramp
 
@@ -85,7 +90,20 @@ def stress_resultants(
     # Scalars:
     tension_only: bool, kink_strain: float,
 ) -> FloatArray:
-    """Stress resultants ``[N, M]`` (n, 6); see :func:`stress_resultants_and_moduli`."""
+    """Stress resultants ``[N, M]`` (n, 6); see :func:`stress_resultants_and_moduli`. Compiled."""
+    return cosserat_compiled.stress_resultants(stiffness, tau, strain, strain_rate, tension_only,
+                                               kink_strain)
+
+
+def stress_resultants_numpy(
+    # Model:
+    stiffness: FloatArray, tau: FloatArray,
+    # State in:
+    strain: FloatArray, strain_rate: FloatArray,
+    # Scalars:
+    tension_only: bool, kink_strain: float,
+) -> FloatArray:
+    """:func:`stress_resultants` in NumPy."""
     return stress_resultants_and_moduli(stiffness, tau, strain, strain_rate, tension_only,
                                         kink_strain)[0]
 
@@ -98,11 +116,24 @@ def strain_energy(
     # Scalars:
     tension_only: bool, kink_strain: float,
 ) -> FloatArray:
-    """Elastic strain energy of each element (§Energy): (n,).
+    """Elastic strain energy of each element (§Energy): (n,). Compiled.
 
     ``Le [EA Rint(Gamma_0) + (GA2 Gamma_1^2 + GA3 Gamma_2^2 + K^T C_M K) / 2]``, with the linear
     axial energy ``EA Gamma_0^2 / 2`` when not tension-only.
     """
+    return cosserat_compiled.strain_energy(rest_length, reference_strain, stiffness, x, q,
+                                           tension_only, kink_strain)
+
+
+def strain_energy_numpy(
+    # Model:
+    rest_length: FloatArray, reference_strain: FloatArray, stiffness: FloatArray,
+    # State in:
+    x: FloatArray, q: FloatArray,
+    # Scalars:
+    tension_only: bool, kink_strain: float,
+) -> FloatArray:
+    """:func:`strain_energy` in NumPy."""
     eps = strains(rest_length, reference_strain, x, q)
     bulk = 0.5 * rest_length * np.sum(stiffness[:, 1:] * eps[:, 1:] ** 2, axis=1)
     return bulk + axial_energy(eps[:, 0], stiffness[:, 0], rest_length, kink_strain, tension_only)
@@ -145,8 +176,22 @@ def internal_force(
     """Internal force ``f_int = Le B^T [N; M]`` of each element (§Internal force): (n, 12).
 
     Translational rows are global forces, rotational rows body-frame moments; with ``tau = 0`` it
-    is the gradient of :func:`strain_energy` on the Lie algebra.
+    is the gradient of :func:`strain_energy` on the Lie algebra. Compiled: one loop over the
+    elements from the node state to the force.
     """
+    return cosserat_compiled.internal_force(rest_length, reference_strain, stiffness, tau, x, q,
+                                            velocity, tension_only, kink_strain)
+
+
+def internal_force_numpy(
+    # Model:
+    rest_length: FloatArray, reference_strain: FloatArray, stiffness: FloatArray, tau: FloatArray,
+    # State in:
+    x: FloatArray, q: FloatArray, velocity: FloatArray,
+    # Scalars:
+    tension_only: bool, kink_strain: float,
+) -> FloatArray:
+    """:func:`internal_force` in NumPy."""
     kinematics_, (stress, _, _), _ = _stress_state(
         rest_length, reference_strain, stiffness, tau, x, q, velocity, tension_only, kink_strain)
     return expand_vector(_reduced_force(*kinematics_, stress))
@@ -162,8 +207,8 @@ def internal_force_and_tangents(
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Internal force with its stiffness and damping tangents (§Tangent).
 
-    The tangents are assembled by the compiled loop of
-    :mod:`rodnet.kernels.cosserat_tangent_compiled`; :func:`internal_force_and_tangents_numpy`
+    Compiled: the force loop of :func:`internal_force` keeps the kinematics and the constitutive
+    state, and the tangent loop assembles from them; :func:`internal_force_and_tangents_numpy`
     gives the same result in NumPy.
 
     Returns
@@ -177,8 +222,8 @@ def internal_force_and_tangents(
     damping_tangent : (n, 12, 12)
         ``C_T = d f_int / d velocity = Le B^T D_v B``.
     """
-    return _force_and_tangents(compiled_tangents, rest_length, reference_strain, stiffness, tau,
-                               x, q, velocity, tension_only, kink_strain)
+    return cosserat_compiled.internal_force_and_tangents(
+        rest_length, reference_strain, stiffness, tau, x, q, velocity, tension_only, kink_strain)
 
 
 def internal_force_and_tangents_numpy(
@@ -189,15 +234,9 @@ def internal_force_and_tangents_numpy(
     # Scalars:
     tension_only: bool, kink_strain: float,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """:func:`internal_force_and_tangents` with the tangents assembled in NumPy (no compilation)."""
-    return _force_and_tangents(tangents, rest_length, reference_strain, stiffness, tau,
-                               x, q, velocity, tension_only, kink_strain)
-
-
-def _force_and_tangents(assemble_tangents, rest_length, reference_strain, stiffness, tau, x, q,
-                        velocity, tension_only, kink_strain):
+    """:func:`internal_force_and_tangents` in NumPy (no compilation)."""
     kinematics_, (stress, modulus, viscous_modulus), velocity9 = _stress_state(
         rest_length, reference_strain, stiffness, tau, x, q, velocity, tension_only, kink_strain)
     force = expand_vector(_reduced_force(*kinematics_, stress))
-    return (force, *assemble_tangents(*kinematics_, stress, modulus, viscous_modulus, velocity9,
-                                      rest_length))
+    return (force, *tangents(*kinematics_, stress, modulus, viscous_modulus, velocity9,
+                             rest_length))

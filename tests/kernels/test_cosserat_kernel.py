@@ -279,9 +279,11 @@ def test_compiled_and_numpy_tangents_agree(name):
     model, state, law = tangent_case(name, n=200)
     compiled = cosserat.internal_force_and_tangents(*model, *state, *law)
     reference = cosserat.internal_force_and_tangents_numpy(*model, *state, *law)
+    # The paths agree on the kinematics to a few ulp (NumPy's and libm's atan2 and tan differ in
+    # the last bit); inside the ramp the axial moduli EA e / delta magnify that by 1 / e.
     for a, b in zip(compiled, reference):
         assert np.all(np.isfinite(a))
-        np.testing.assert_allclose(a, b, rtol=0, atol=1e-13 * np.abs(b).max())
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-12 * np.abs(b).max())
 
 
 @pytest.mark.parametrize("angle", [0.0, 1e-9, np.pi - 1e-3])

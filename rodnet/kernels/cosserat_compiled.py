@@ -1,0 +1,592 @@
+"""Compiled Cosserat element: one loop over elements from the node state to forces and tangents.
+
+The same equations as the NumPy path of :mod:`rodnet.kernels.cosserat` (``elements/cosserat/
+FORMULATION.md`` §Kinematics, §Strains, §Strain rates, §Constitutive law, §Energy, §Internal
+force, §Tangent), with the arithmetic in the same order and the same series switches. Only the
+transcendental functions differ in the last bit (libm here, NumPy's own loops there), so the
+kinematics of the two paths agree to a few ulp. For small rods the NumPy path costs a few dozen
+array calls per evaluation whatever ``n``; here each element is a few hundred scalar operations
+and a call costs little more than its dispatch.
+
+Work is on the chord-reduced DOF ``[dd, dtheta1, dtheta2]`` of
+:mod:`rodnet.kernels.cosserat_strain`; vectors and blocks are expanded to the 12 element DOF on
+output. Arguments and shapes are those of :mod:`rodnet.kernels.cosserat`.
+
+Every compiled function lives in this file and the Taylor coefficients are passed as arguments:
+numba's cache sees neither edits to compiled functions of other modules nor new values of global
+arrays, which it freezes at compile time.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+from numpy.typing import ArrayLike
+
+from rodnet.kernels import cosserat_strain, so3
+from rodnet.kernels.so3 import FloatArray
+
+# rows: beta, beta'/phi (cosserat_strain.midpoint_coefficient), gamma, gamma'/phi
+# (so3.dexp_inv_coefficient), each a polynomial in phi^2 used below its switch angle
+_SERIES = np.ascontiguousarray(np.stack([
+    cosserat_strain._BETA_SERIES, cosserat_strain._BETA_D_SERIES,
+    so3._GAMMA_SERIES, so3._GAMMA_D_SERIES]), dtype=np.float64)
+_SWITCH_ANGLES = (float(cosserat_strain._SERIES_ANGLE), float(so3._GAMMA_SERIES_ANGLE))
+
+
+def _as_float(a: ArrayLike) -> FloatArray:
+    """C-contiguous float64 (a no-op for the usual inputs): one compiled specialisation."""
+    return np.ascontiguousarray(a, dtype=np.float64)
+
+
+def _check_shapes(got: tuple[tuple[int, ...], ...], expected: tuple[tuple[int, ...], ...]) -> None:
+    # the compiled loops do not check bounds
+    if got != expected:
+        raise ValueError(f"Cosserat kernel: array shapes {got}, expected {expected}")
+
+
+def _element_arguments(*model_and_state: ArrayLike) -> tuple[FloatArray, ...]:
+    """``rest_length, reference_strain, stiffness, tau, x, q, velocity``, converted and checked."""
+    arrays = tuple(_as_float(a) for a in model_and_state)
+    n = arrays[0].shape[0]
+    _check_shapes(tuple(a.shape for a in arrays),
+                  ((n,), (n, 6), (n, 6), (n,), (n, 2, 3), (n, 2, 4), (n, 12)))
+    return arrays
+
+
+def internal_force(
+    # Model:
+    rest_length: FloatArray, reference_strain: FloatArray, stiffness: FloatArray, tau: FloatArray,
+    # State in:
+    x: FloatArray, q: FloatArray, velocity: FloatArray,
+    # Scalars:
+    tension_only: bool, kink_strain: float,
+) -> FloatArray:
+    """:func:`rodnet.kernels.cosserat.internal_force_numpy`, compiled: (n, 12)."""
+    arrays = _element_arguments(rest_length, reference_strain, stiffness, tau, x, q, velocity)
+    return _internal_force_kernel(*arrays, bool(tension_only), float(kink_strain), _SERIES,
+                                  *_SWITCH_ANGLES)
+
+
+def internal_force_and_tangents(
+    # Model:
+    rest_length: FloatArray, reference_strain: FloatArray, stiffness: FloatArray, tau: FloatArray,
+    # State in:
+    x: FloatArray, q: FloatArray, velocity: FloatArray,
+    # Scalars:
+    tension_only: bool, kink_strain: float,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """:func:`rodnet.kernels.cosserat.internal_force_and_tangents_numpy`, compiled.
+
+    Returns the force (n, 12) and the stiffness and damping tangents (n, 12, 12).
+    """
+    arrays = _element_arguments(rest_length, reference_strain, stiffness, tau, x, q, velocity)
+    n = arrays[0].shape[0]
+    # NumPy allocates the large outputs: it asks for huge pages, numba's allocator does not, and
+    # first-touch page faults would otherwise cost as much as the assembly at large n
+    force = np.empty((n, 12))
+    stiffness_out, damping_out = np.empty((n, 12, 12)), np.empty((n, 12, 12))
+    _internal_force_and_tangents_kernel(*arrays, bool(tension_only), float(kink_strain), _SERIES,
+                                        *_SWITCH_ANGLES, force, stiffness_out, damping_out)
+    return force, stiffness_out, damping_out
+
+
+def strain_energy(
+    # Model:
+    rest_length: FloatArray, reference_strain: FloatArray, stiffness: FloatArray,
+    # State in:
+    x: FloatArray, q: FloatArray,
+    # Scalars:
+    tension_only: bool, kink_strain: float,
+) -> FloatArray:
+    """:func:`rodnet.kernels.cosserat.strain_energy_numpy`, compiled: (n,)."""
+    arrays = tuple(_as_float(a) for a in (rest_length, reference_strain, stiffness, x, q))
+    n = arrays[0].shape[0]
+    _check_shapes(tuple(a.shape for a in arrays), ((n,), (n, 6), (n, 6), (n, 2, 3), (n, 2, 4)))
+    return _strain_energy_kernel(*arrays, bool(tension_only), float(kink_strain))
+
+
+def stress_resultants(
+    # Model:
+    stiffness: FloatArray, tau: FloatArray,
+    # State in:
+    strain: FloatArray, strain_rate: FloatArray,
+    # Scalars:
+    tension_only: bool, kink_strain: float,
+) -> FloatArray:
+    """:func:`rodnet.kernels.cosserat.stress_resultants_numpy`, compiled: (n, 6)."""
+    arrays = tuple(_as_float(a) for a in (stiffness, tau, strain, strain_rate))
+    n = arrays[0].shape[0]
+    _check_shapes(tuple(a.shape for a in arrays), ((n, 6), (n,), (n, 6), (n, 6)))
+    return _stress_resultants_kernel(*arrays, bool(tension_only), float(kink_strain))
+
+
+# ---------------------------------------------------------------------------------------------
+# scalar pieces
+
+
+@numba.njit(cache=True)
+def _horner(series, row, x):  # pragma: no cover - compiled
+    """``polyval(x, series[row])``, evaluated as NumPy does."""
+    m = series.shape[1]
+    s = series[row, m - 1]
+    for i in range(m - 2, -1, -1):
+        s = series[row, i] + s * x
+    return s
+
+
+@numba.njit(cache=True)
+def _beta(phi, series, angle):  # pragma: no cover - compiled
+    """``tan(phi/4) / (2 phi)``, as :func:`rodnet.kernels.cosserat_strain.midpoint_coefficient`."""
+    if phi < angle:
+        return _horner(series, 0, phi * phi)
+    return np.tan(0.25 * phi) / (2.0 * phi)
+
+
+@numba.njit(cache=True)
+def _beta_derivative(phi, series, angle):  # pragma: no cover - compiled
+    """``beta'(phi) / phi``."""
+    if phi < angle:
+        return _horner(series, 1, phi * phi)
+    t = np.tan(0.25 * phi)
+    return ((1.0 + t * t) / (8.0 * phi) - t / (2.0 * phi * phi)) / phi
+
+
+@numba.njit(cache=True)
+def _gamma(phi, series, angle):  # pragma: no cover - compiled
+    """``1/phi^2 - cot(phi/2)/(2 phi)``, as :func:`rodnet.kernels.so3.dexp_inv_coefficient`."""
+    if phi < angle:
+        return _horner(series, 2, phi * phi)
+    inv_p = 1.0 / phi
+    return inv_p * (inv_p - 0.5 / np.tan(0.5 * phi))
+
+
+@numba.njit(cache=True)
+def _gamma_derivative(phi, series, angle):  # pragma: no cover - compiled
+    """``gamma'(phi) / phi``."""
+    if phi < angle:
+        return _horner(series, 3, phi * phi)
+    inv_p = 1.0 / phi
+    half_cot = 0.5 / np.tan(0.5 * phi)
+    sin_half = np.sin(0.5 * phi)
+    return inv_p * inv_p * (inv_p * (half_cot - 2.0 * inv_p) + 0.25 / (sin_half * sin_half))
+
+
+@numba.njit(cache=True)
+def _cross(a0, a1, a2, b0, b1, b2):  # pragma: no cover - compiled
+    return a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+
+
+@numba.njit(cache=True)
+def _kinematics(x, q, e):  # pragma: no cover - compiled
+    """``psi``, ``R_m`` (row-major 9-tuple) and ``g`` of element ``e`` (§Kinematics).
+
+    As :func:`rodnet.kernels.cosserat_strain.kinematics`: ``psi = log(conj(q1) q2)`` with
+    ``w >= 0``, ``R_m = R(q1 exp_q(psi/2))``, ``g = R_m^T (x2 - x1)``.
+    """
+    w1, x1, y1, z1 = q[e, 0, 0], q[e, 0, 1], q[e, 0, 2], q[e, 0, 3]
+    w2, x2, y2, z2 = q[e, 1, 0], q[e, 1, 1], q[e, 1, 2], q[e, 1, 3]
+    # conj(q1) ⊗ q2 (quat_conjugate, quat_multiply)
+    cx, cy, cz = -x1, -y1, -z1
+    rw = w1 * w2 - cx * x2 - cy * y2 - cz * z2
+    rx = w1 * x2 + cx * w2 + cy * z2 - cz * y2
+    ry = w1 * y2 - cx * z2 + cy * w2 + cz * x2
+    rz = w1 * z2 + cx * y2 - cy * x2 + cz * w2
+    # logarithm (rotvec_from_quat)
+    if rw < 0.0:
+        rw, rx, ry, rz = -rw, -rx, -ry, -rz
+    s = np.sqrt(rx * rx + ry * ry + rz * rz)
+    if s < 1e-6 * rw:
+        t = s / rw
+        factor = 2.0 / rw * (1.0 - t * t / 3.0)
+    else:
+        factor = 2.0 * np.arctan2(s, rw) / s
+    p0, p1, p2 = factor * rx, factor * ry, factor * rz
+    # exp_q of theta = psi/2 (quat_from_rotvec): (cos(|theta|/2), sinc(|theta|/(2 pi)) theta/2)
+    h0, h1, h2 = 0.5 * p0, 0.5 * p1, 0.5 * p2
+    phi_h = np.sqrt(h0 * h0 + h1 * h1 + h2 * h2)
+    y = np.pi * (phi_h / (2.0 * np.pi))
+    c = 0.5 * (np.sin(y) / y if y != 0.0 else 1.0)
+    hw, hx, hy, hz = np.cos(0.5 * phi_h), c * h0, c * h1, c * h2
+    # q1 ⊗ half (quat_multiply), then quat_to_matrix
+    w = w1 * hw - x1 * hx - y1 * hy - z1 * hz
+    u = w1 * hx + x1 * hw + y1 * hz - z1 * hy
+    v = w1 * hy - x1 * hz + y1 * hw + z1 * hx
+    z = w1 * hz + x1 * hy - y1 * hx + z1 * hw
+    R = (1.0 - 2.0 * (v * v + z * z), 2.0 * (u * v - w * z), 2.0 * (u * z + w * v),
+         2.0 * (u * v + w * z), 1.0 - 2.0 * (u * u + z * z), 2.0 * (v * z - w * u),
+         2.0 * (u * z - w * v), 2.0 * (v * z + w * u), 1.0 - 2.0 * (u * u + v * v))
+    d0, d1, d2 = x[e, 1, 0] - x[e, 0, 0], x[e, 1, 1] - x[e, 0, 1], x[e, 1, 2] - x[e, 0, 2]
+    g0 = R[0] * d0 + R[3] * d1 + R[6] * d2
+    g1 = R[1] * d0 + R[4] * d1 + R[7] * d2
+    g2 = R[2] * d0 + R[5] * d1 + R[8] * d2
+    return (p0, p1, p2), R, (g0, g1, g2)
+
+
+@numba.njit(cache=True)
+def _axial(e, e_rate, EA, tau, tension_only, kink):  # pragma: no cover - compiled
+    """Axial force and its strain and strain-rate moduli (§Constitutive law).
+
+    As :func:`rodnet.kernels.tension.axial_force` and
+    :func:`rodnet.kernels.cosserat.stress_resultants_and_moduli`; both moduli vanish where the
+    tension-only clamp holds.
+    """
+    etaA = tau * EA
+    if not tension_only:
+        return EA * e + etaA * e_rate, EA, etaA
+    curvature = 0.0
+    if kink == 0.0:
+        r, slope = (e, 1.0) if e > 0.0 else (0.0, 0.0)
+    else:
+        ec = e if e > 0.0 else 0.0
+        if ec < kink:
+            r, slope = ec * ec / (2.0 * kink), ec / kink
+        else:
+            r, slope = ec - 0.5 * kink, 1.0
+        if e > 0.0 and e < kink:
+            curvature = 1.0 / kink
+    total = EA * r + etaA * slope * e_rate
+    force = 0.0 if total < 0.0 else total
+    if force > 0.0:
+        return force, EA * (slope + tau * curvature * e_rate), tau * EA * slope
+    return force, 0.0, 0.0
+
+
+@numba.njit(cache=True)
+def _axial_energy_density(e, EA, Le, tension_only, kink):  # pragma: no cover - compiled
+    """:func:`rodnet.kernels.tension.axial_energy` of one element."""
+    if not tension_only:
+        return 0.5 * EA * Le * (e * e)
+    ec = e if e > 0.0 else 0.0
+    if kink == 0.0:
+        integral = 0.5 * ec * ec
+    elif ec < kink:
+        integral = ec * ec * ec / (6.0 * kink)
+    else:
+        integral = 0.5 * ec * ec - 0.5 * kink * ec + kink * kink / 6.0
+    return EA * Le * integral
+
+
+# ---------------------------------------------------------------------------------------------
+# loops
+
+
+@numba.njit(cache=True)
+def _state_and_force(rest_length, reference_strain, stiffness, tau, x, q, velocity, tension_only,
+                     kink, series, beta_angle, gamma_angle, force, psi_out, R_out, g_out,
+                     coefficients, constitutive, velocity9):  # pragma: no cover - compiled
+    """Internal force ``S [R_m N, P2 h - A M, P2^T h + A^T M]``, ``h = N x g``, per element.
+
+    When ``psi_out`` has ``n`` rows, also stores what :func:`_tangents_kernel` takes: ``psi``,
+    ``R_m``, ``g``, ``[beta, beta'/phi, gamma, gamma'/phi]``, ``[stress, modulus,
+    viscous_modulus]`` and ``[v2 - v1, W1, W2]``.
+    """
+    store = psi_out.shape[0] > 0
+    for e in range(rest_length.shape[0]):
+        (p0, p1, p2), R, (g0, g1, g2) = _kinematics(x, q, e)
+        Le = rest_length[e]
+        phi = np.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
+        beta = _beta(phi, series, beta_angle)
+        gamma = _gamma(phi, series, gamma_angle)
+        # strains [g / Le - Gamma0, psi / Le - K0] (strains_from_kinematics)
+        eps = (g0 / Le - reference_strain[e, 0], g1 / Le - reference_strain[e, 1],
+               g2 / Le - reference_strain[e, 2], p0 / Le - reference_strain[e, 3],
+               p1 / Le - reference_strain[e, 4], p2 / Le - reference_strain[e, 5])
+        # strain rates (strain_rates_from_kinematics)
+        vd0, vd1, vd2 = (velocity[e, 6] - velocity[e, 0], velocity[e, 7] - velocity[e, 1],
+                         velocity[e, 8] - velocity[e, 2])
+        a0, a1, a2 = velocity[e, 3], velocity[e, 4], velocity[e, 5]
+        b0, b1, b2 = velocity[e, 9], velocity[e, 10], velocity[e, 11]
+        w0, w1, w2 = b0 - a0, b1 - a1, b2 - a2
+        c0, c1, c2 = _cross(p0, p1, p2, w0, w1, w2)
+        z0 = 0.5 * (a0 + b0) + beta * c0
+        z1 = 0.5 * (a1 + b1) + beta * c1
+        z2 = 0.5 * (a2 + b2) + beta * c2
+        s0, s1, s2 = _cross(g0, g1, g2, z0, z1, z2)
+        cc0, cc1, cc2 = _cross(p0, p1, p2, c0, c1, c2)
+        k0, k1, k2 = _cross(p0, p1, p2, a0, a1, a2)
+        rate = ((R[0] * vd0 + R[3] * vd1 + R[6] * vd2 + s0) / Le,
+                (R[1] * vd0 + R[4] * vd1 + R[7] * vd2 + s1) / Le,
+                (R[2] * vd0 + R[5] * vd1 + R[8] * vd2 + s2) / Le,
+                (w0 + 0.5 * c0 + gamma * cc0 + k0) / Le,
+                (w1 + 0.5 * c1 + gamma * cc1 + k1) / Le,
+                (w2 + 0.5 * c2 + gamma * cc2 + k2) / Le)
+        # resultants (stress_resultants_and_moduli)
+        te = tau[e]
+        N0, D0, V0 = _axial(eps[0], rate[0], stiffness[e, 0], te, tension_only, kink)
+        N1 = stiffness[e, 1] * eps[1] + te * stiffness[e, 1] * rate[1]
+        N2 = stiffness[e, 2] * eps[2] + te * stiffness[e, 2] * rate[2]
+        M0 = stiffness[e, 3] * eps[3] + te * stiffness[e, 3] * rate[3]
+        M1 = stiffness[e, 4] * eps[4] + te * stiffness[e, 4] * rate[4]
+        M2 = stiffness[e, 5] * eps[5] + te * stiffness[e, 5] * rate[5]
+        # reduced force (_reduced_force) and its expansion (expand_vector)
+        h0, h1, h2 = _cross(N0, N1, N2, g0, g1, g2)
+        ph0, ph1, ph2 = _cross(p0, p1, p2, h0, h1, h2)
+        pm0, pm1, pm2 = _cross(p0, p1, p2, M0, M1, M2)
+        ppm0, ppm1, ppm2 = _cross(p0, p1, p2, pm0, pm1, pm2)
+        AM0 = M0 + 0.5 * pm0 + gamma * ppm0
+        AM1 = M1 + 0.5 * pm1 + gamma * ppm1
+        AM2 = M2 + 0.5 * pm2 + gamma * ppm2
+        fd0 = R[0] * N0 + R[1] * N1 + R[2] * N2
+        fd1 = R[3] * N0 + R[4] * N1 + R[5] * N2
+        fd2 = R[6] * N0 + R[7] * N1 + R[8] * N2
+        force[e, 0], force[e, 1], force[e, 2] = -fd0, -fd1, -fd2
+        force[e, 6], force[e, 7], force[e, 8] = fd0, fd1, fd2
+        force[e, 3] = 0.5 * h0 + beta * ph0 - AM0
+        force[e, 4] = 0.5 * h1 + beta * ph1 - AM1
+        force[e, 5] = 0.5 * h2 + beta * ph2 - AM2
+        force[e, 9] = 0.5 * h0 - beta * ph0 + (AM0 - pm0)
+        force[e, 10] = 0.5 * h1 - beta * ph1 + (AM1 - pm1)
+        force[e, 11] = 0.5 * h2 - beta * ph2 + (AM2 - pm2)
+        if store:
+            psi_out[e, 0], psi_out[e, 1], psi_out[e, 2] = p0, p1, p2
+            for k in range(9):
+                R_out[e, k // 3, k % 3] = R[k]
+            g_out[e, 0], g_out[e, 1], g_out[e, 2] = g0, g1, g2
+            coefficients[e, 0] = beta
+            coefficients[e, 1] = _beta_derivative(phi, series, beta_angle)
+            coefficients[e, 2] = gamma
+            coefficients[e, 3] = _gamma_derivative(phi, series, gamma_angle)
+            stress = (N0, N1, N2, M0, M1, M2)
+            for k in range(6):
+                constitutive[e, k] = stress[k]
+            for k in range(1, 6):
+                constitutive[e, 6 + k] = stiffness[e, k]
+                constitutive[e, 12 + k] = te * stiffness[e, k]
+            constitutive[e, 6], constitutive[e, 12] = D0, V0
+            velocity9[e, 0], velocity9[e, 1], velocity9[e, 2] = vd0, vd1, vd2
+            velocity9[e, 3], velocity9[e, 4], velocity9[e, 5] = a0, a1, a2
+            velocity9[e, 6], velocity9[e, 7], velocity9[e, 8] = b0, b1, b2
+
+
+@numba.njit(cache=True)
+def _internal_force_kernel(rest_length, reference_strain, stiffness, tau, x, q, velocity,
+                           tension_only, kink, series, beta_angle,
+                           gamma_angle):  # pragma: no cover - compiled
+    n = rest_length.shape[0]
+    force = np.empty((n, 12))
+    none1, none2, none3 = np.empty((0, 3)), np.empty((0, 3, 3)), np.empty((0, 4))
+    _state_and_force(rest_length, reference_strain, stiffness, tau, x, q, velocity, tension_only,
+                     kink, series, beta_angle, gamma_angle, force, none1, none2, none1, none3,
+                     np.empty((0, 18)), np.empty((0, 9)))
+    return force
+
+
+@numba.njit(cache=True)
+def _internal_force_and_tangents_kernel(rest_length, reference_strain, stiffness, tau, x, q,
+                                        velocity, tension_only, kink, series, beta_angle,
+                                        gamma_angle, force, stiffness_out,
+                                        damping_out):  # pragma: no cover - compiled
+    n = rest_length.shape[0]
+    psi, R_m, g = np.empty((n, 3)), np.empty((n, 3, 3)), np.empty((n, 3))
+    coefficients, constitutive, velocity9 = np.empty((n, 4)), np.empty((n, 18)), np.empty((n, 9))
+    _state_and_force(rest_length, reference_strain, stiffness, tau, x, q, velocity, tension_only,
+                     kink, series, beta_angle, gamma_angle, force, psi, R_m, g, coefficients,
+                     constitutive, velocity9)
+    _tangents_kernel(psi, R_m, g, coefficients, constitutive, velocity9, 1.0 / rest_length,
+                     stiffness_out, damping_out)
+
+
+@numba.njit(cache=True)
+def _strain_energy_kernel(rest_length, reference_strain, stiffness, x, q, tension_only,
+                          kink):  # pragma: no cover - compiled
+    """``Le [EA Rint(Gamma_0) + (GA2 Gamma_1^2 + GA3 Gamma_2^2 + K^T C_M K) / 2]`` (§Energy)."""
+    n = rest_length.shape[0]
+    energy = np.empty(n)
+    for e in range(n):
+        (p0, p1, p2), _, (g0, g1, g2) = _kinematics(x, q, e)
+        Le = rest_length[e]
+        eps = (g0 / Le - reference_strain[e, 0], g1 / Le - reference_strain[e, 1],
+               g2 / Le - reference_strain[e, 2], p0 / Le - reference_strain[e, 3],
+               p1 / Le - reference_strain[e, 4], p2 / Le - reference_strain[e, 5])
+        bulk = 0.0
+        for k in range(1, 6):
+            bulk += stiffness[e, k] * (eps[k] * eps[k])
+        energy[e] = 0.5 * Le * bulk + _axial_energy_density(eps[0], stiffness[e, 0], Le,
+                                                             tension_only, kink)
+    return energy
+
+
+@numba.njit(cache=True)
+def _stress_resultants_kernel(stiffness, tau, strain, strain_rate, tension_only,
+                              kink):  # pragma: no cover - compiled
+    n = stiffness.shape[0]
+    stress = np.empty((n, 6))
+    for e in range(n):
+        stress[e, 0] = _axial(strain[e, 0], strain_rate[e, 0], stiffness[e, 0], tau[e],
+                              tension_only, kink)[0]
+        for k in range(1, 6):
+            k_e = stiffness[e, k]
+            stress[e, k] = k_e * strain[e, k] + tau[e] * k_e * strain_rate[e, k]
+    return stress
+
+
+# ---------------------------------------------------------------------------------------------
+# tangents (also behind rodnet.kernels.cosserat_tangent_compiled.tangents)
+
+
+@numba.njit(cache=True)
+def _put_hat(scale, v, out, r, c):  # pragma: no cover - compiled
+    """``out[r:r+3, c:c+3] = scale * hat(v)``."""
+    out[r, c], out[r, c + 1], out[r, c + 2] = 0.0, -scale * v[2], scale * v[1]
+    out[r + 1, c], out[r + 1, c + 1], out[r + 1, c + 2] = scale * v[2], 0.0, -scale * v[0]
+    out[r + 2, c], out[r + 2, c + 1], out[r + 2, c + 2] = -scale * v[1], scale * v[0], 0.0
+
+
+@numba.njit(cache=True)
+def _add_hat(scale, v, out, r, c):  # pragma: no cover - compiled
+    """``out[r:r+3, c:c+3] += scale * hat(v)``."""
+    out[r, c + 1] -= scale * v[2]
+    out[r, c + 2] += scale * v[1]
+    out[r + 1, c] += scale * v[2]
+    out[r + 1, c + 2] -= scale * v[0]
+    out[r + 2, c] -= scale * v[1]
+    out[r + 2, c + 1] += scale * v[0]
+
+
+@numba.njit(cache=True)
+def _put_product(scale, a, b, out, r, c):  # pragma: no cover - compiled
+    """``out[r:r+3, c:c+3] = scale * a @ b`` for 3 x 3 ``a``, ``b``."""
+    for i in range(3):
+        for j in range(3):
+            out[r + i, c + j] = scale * (a[i, 0] * b[0, j] + a[i, 1] * b[1, j] + a[i, 2] * b[2, j])
+
+
+@numba.njit(cache=True)
+def _matmul(a, b, out):  # pragma: no cover - compiled
+    for i in range(a.shape[0]):
+        for j in range(b.shape[1]):
+            s = 0.0
+            for k in range(a.shape[1]):
+                s += a[i, k] * b[k, j]
+            out[i, j] = s
+
+
+@numba.njit(cache=True)
+def _dexp_inv_derivative(psi, w, gamma, gamma_d, out):  # pragma: no cover - compiled
+    """``d(T^-1 w)/dpsi``, as :func:`rodnet.kernels.so3.dexp_inv_derivative`."""
+    c0 = psi[1] * w[2] - psi[2] * w[1]
+    c1 = psi[2] * w[0] - psi[0] * w[2]
+    c2 = psi[0] * w[1] - psi[1] * w[0]
+    a = (gamma_d * (psi[1] * c2 - psi[2] * c1) - 2.0 * gamma * w[0],
+         gamma_d * (psi[2] * c0 - psi[0] * c2) - 2.0 * gamma * w[1],
+         gamma_d * (psi[0] * c1 - psi[1] * c0) - 2.0 * gamma * w[2])
+    pw = psi[0] * w[0] + psi[1] * w[1] + psi[2] * w[2]
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = a[i] * psi[j] + gamma * psi[i] * w[j]
+        out[i, i] += gamma * pw
+    _add_hat(-0.5, w, out, 0, 0)
+
+
+@numba.njit(cache=True)
+def _midpoint_derivative(psi, w, beta, beta_d, out):  # pragma: no cover - compiled
+    """``d(P2 w)/dpsi``, as :func:`rodnet.kernels.cosserat_tangent.midpoint_derivative`."""
+    c = (beta_d * (psi[1] * w[2] - psi[2] * w[1]), beta_d * (psi[2] * w[0] - psi[0] * w[2]),
+         beta_d * (psi[0] * w[1] - psi[1] * w[0]))
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = c[i] * psi[j]
+    _add_hat(-beta, w, out, 0, 0)
+
+
+@numba.njit(cache=True)
+def _tangents_kernel(psi, R_m, g, coefficients, constitutive, velocity9, inv_le,
+                     stiffness_out, damping_out):  # pragma: no cover - compiled
+    """Per element: ``K9 = B9^T (D B9 + D_v U9 L9) / Le + Q9 L9``, ``C9 = B9^T D_v B9 / Le``.
+
+    ``coefficients`` (n, 4) = ``[beta, beta'/phi, gamma, gamma'/phi]``; ``constitutive`` (n, 18) =
+    ``[stress, modulus, viscous_modulus]``.
+    """
+    # scratch reused by every element; blocks that are never written stay zero
+    S, A, P2, G = np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3))
+    hat_N, D_M, D_dW = np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3))
+    E_h, E_dW = np.zeros((3, 3)), np.zeros((3, 3))
+    B9, U9, G_u, Z9 = np.zeros((6, 9)), np.zeros((6, 9)), np.zeros((6, 9)), np.zeros((6, 9))
+    L9, Q9, K9, C9 = np.zeros((9, 9)), np.zeros((9, 9)), np.zeros((9, 9)), np.zeros((9, 9))
+    N, M, h, dW = np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3)
+    Rv, z = np.zeros(3), np.zeros(3)
+    blocks, signs = (0, 3, 0, 6), (-1.0, 1.0, 1.0, 1.0)
+    for e in range(psi.shape[0]):
+        p, R = psi[e], R_m[e]
+        beta, beta_d = coefficients[e, 0], coefficients[e, 1]
+        gamma, gamma_d = coefficients[e, 2], coefficients[e, 3]
+        # B9 = [[R^T, G P2^T, G P2], [0, -A^T, A]] and L9 = [[0, P2^T, P2], B9] (strain_operators)
+        _put_hat(1.0, p, S, 0, 0)
+        _matmul(S, S, A)
+        for i in range(3):
+            for j in range(3):
+                A[i, j] = 0.5 * S[i, j] + gamma * A[i, j]
+                P2[i, j] = beta * S[i, j]
+            A[i, i] += 1.0
+            P2[i, i] += 0.5
+        _put_hat(1.0, g[e], G, 0, 0)
+        for i in range(3):
+            for j in range(3):
+                B9[i, j] = R[j, i]
+                B9[i, 3 + j] = G[i, 0] * P2[j, 0] + G[i, 1] * P2[j, 1] + G[i, 2] * P2[j, 2]
+                B9[i, 6 + j] = G[i, 0] * P2[0, j] + G[i, 1] * P2[1, j] + G[i, 2] * P2[2, j]
+                B9[3 + i, 3 + j] = -A[j, i]
+                B9[3 + i, 6 + j] = A[i, j]
+                L9[i, 3 + j] = P2[j, i]
+                L9[i, 6 + j] = P2[i, j]
+        for i in range(6):
+            for j in range(9):
+                L9[3 + i, j] = B9[i, j]
+        # derivatives of B9 at fixed stress (Q9) and fixed velocity (U9) (geometric_factors)
+        for k in range(3):
+            N[k], M[k] = constitutive[e, k], constitutive[e, 3 + k]
+            dW[k] = velocity9[e, 6 + k] - velocity9[e, 3 + k]
+        h[0] = N[1] * g[e, 2] - N[2] * g[e, 1]
+        h[1] = N[2] * g[e, 0] - N[0] * g[e, 2]
+        h[2] = N[0] * g[e, 1] - N[1] * g[e, 0]
+        _dexp_inv_derivative(p, M, gamma, gamma_d, D_M)
+        _dexp_inv_derivative(p, dW, gamma, gamma_d, D_dW)
+        _midpoint_derivative(p, h, beta, beta_d, E_h)
+        _midpoint_derivative(p, dW, beta, beta_d, E_dW)
+        _put_hat(1.0, N, hat_N, 0, 0)
+        _put_product(-1.0, R, hat_N, Q9, 0, 0)
+        _put_product(1.0, P2, hat_N, Q9, 3, 3)
+        for i in range(3):
+            for j in range(3):
+                Q9[6 + i, 3 + j] = hat_N[i, j] - Q9[3 + i, 3 + j]
+                Q9[3 + i, 6 + j] = E_h[i, j] - D_M[i, j]
+                Q9[6 + i, 6 + j] = D_M[i, j] - E_h[i, j]
+        _add_hat(1.0, M, Q9, 6, 6)
+        for k in range(3):
+            Rv[k] = (R[0, k] * velocity9[e, 0] + R[1, k] * velocity9[e, 1]
+                     + R[2, k] * velocity9[e, 2])
+            z[k] = 0.0
+            for j in range(3):
+                z[k] += P2[j, k] * velocity9[e, 3 + j] + P2[k, j] * velocity9[e, 6 + j]
+        _put_hat(1.0, Rv, U9, 0, 0)
+        _put_hat(-1.0, z, U9, 0, 3)
+        _put_product(1.0, G, E_dW, U9, 0, 6)
+        for i in range(3):
+            for j in range(3):
+                U9[3 + i, 6 + j] = D_dW[i, j]
+        _add_hat(-1.0, velocity9[e, 3:6], U9, 3, 6)
+        # K9 = B9^T Z9 + Q9 L9 with Z9 = (D B9 + D_v U9 L9) / Le;  C9 = B9^T D_v B9 / Le
+        _matmul(U9, L9, G_u)
+        for i in range(6):
+            a, b = constitutive[e, 6 + i] * inv_le[e], constitutive[e, 12 + i] * inv_le[e]
+            for j in range(9):
+                Z9[i, j] = a * B9[i, j] + b * G_u[i, j]
+        _matmul(Q9, L9, K9)
+        for i in range(9):
+            for j in range(9):
+                s, c = 0.0, 0.0
+                for k in range(6):
+                    s += B9[k, i] * Z9[k, j]
+                    c += B9[k, i] * constitutive[e, 12 + k] * B9[k, j]
+                K9[i, j] += s
+                C9[i, j] = c * inv_le[e]
+        # expand to the element DOF (expand_matrix)
+        for bi in range(4):
+            for bj in range(4):
+                sign = signs[bi] * signs[bj]
+                for i in range(3):
+                    for j in range(3):
+                        r, c = blocks[bi] + i, blocks[bj] + j
+                        stiffness_out[e, 3 * bi + i, 3 * bj + j] = sign * K9[r, c]
+                        damping_out[e, 3 * bi + i, 3 * bj + j] = sign * C9[r, c]
