@@ -58,6 +58,7 @@ class Stepper:
     rho_inf: float = 0.7
     options: NewtonOptions = field(default_factory=NewtonOptions)
     solver: LinearSolver = field(default_factory=LinearSolver)
+    started: bool = False
 
     def initial(self, q0: Any, v0: FloatArray, t0: float) -> MotionState:
         """The start state with the consistent acceleration vd0 = -M^-1 g(q0, v0, t0)."""
@@ -68,7 +69,24 @@ class Stepper:
         return MotionState(q0, v, vd, vd.copy())
 
     def step(self, state: MotionState, t: float, h: float) -> tuple[MotionState, NewtonResult]:
-        """Advance ``state`` from ``t`` to ``t + h``; the result says whether Newton converged."""
+        """Advance ``state`` from ``t`` to ``t + h``; the result says whether Newton converged.
+
+        When generalized-alpha's first step fails, it is taken as backward Euler instead: the
+        consistent start acceleration of a rod with viscosity and a non-rigid initial velocity
+        holds the response of the stiff shear/rotary modes (of order 1e13 rad/s^2 for a 1 mm
+        thread), which the scheme's predictor turns into a huge first rotation. One first-order
+        step keeps the global second order (its local error is O(h^2)).
+        """
+        if self.scheme == "generalized-alpha" and not self.started:
+            new, result = self._step(state, t, h)
+            if not result.converged:
+                euler = Stepper(self.system, "backward-euler", self.rho_inf, self.options, self.solver)
+                new, result = euler.step(state, t, h)
+            self.started = result.converged
+            return new, result
+        return self._step(state, t, h)
+
+    def _step(self, state: MotionState, t: float, h: float) -> tuple[MotionState, NewtonResult]:
         s, free = self.system, self.system.free
         M = s.dof_mass[free]
         am, af, gamma, beta = chung_hulbert(self.rho_inf)
@@ -103,10 +121,10 @@ class Stepper:
             g, K, C = s.tangents(new.q, new.v, t + h)
             KT = _times_tangent_operator(s, K, dq)
             if self.scheme == "backward-euler":
-                S = sp.diags(M / h) + C + h * KT
+                S = _combine(M / h, 1.0, C, h, KT)
             else:
-                S = sp.diags(M) + (h * gamma * c) * C + (h * h * beta * c) * KT
-            return M * new.vd[free] + g[free], S.tocsr()
+                S = _combine(M, h * gamma * c, C, h * h * beta * c, KT)
+            return M * new.vd[free] + g[free], S
 
         rot = s.rotation_dofs()
         rot_free = s.free[rot] if len(rot) else np.zeros(0, bool)
@@ -128,6 +146,38 @@ class Stepper:
 
         result = newton(evaluate, u0, scale, self.solver, self.options, step_limit, active_set)
         return unpack(result.u)[0], result
+
+
+def _combine(diagonal: FloatArray, a: float, C: sp.csr_matrix, b: float,
+             KT: sp.csr_matrix) -> sp.csr_matrix:
+    """``diag(diagonal) + a C + b KT``; when C and KT share one sparsity pattern that holds the
+    diagonal (the models' assembled tangents do), the sum is formed on their data arrays."""
+    same = (C.indptr is KT.indptr or np.array_equal(C.indptr, KT.indptr)) and \
+        (C.indices is KT.indices or np.array_equal(C.indices, KT.indices))
+    diag = _diagonal_positions(C) if same else None
+    if diag is None:
+        return (sp.diags(diagonal) + a * C + b * KT).tocsr()
+    data = a * C.data + b * KT.data
+    data[diag] += diagonal
+    return sp.csr_matrix((data, C.indices, C.indptr), shape=C.shape)
+
+
+_DIAGONALS: dict[int, tuple[Any, NDArray[np.int64] | None]] = {}
+
+
+def _diagonal_positions(A: sp.csr_matrix) -> NDArray[np.int64] | None:
+    """Positions of the diagonal entries in ``A.data`` (cached per index array), or None when a
+    diagonal entry is not stored."""
+    key = id(A.indices)
+    cached = _DIAGONALS.get(key)
+    if cached is not None and cached[0] is A.indices:
+        return cached[1]
+    n = A.shape[0]
+    rows = np.repeat(np.arange(n), np.diff(A.indptr))
+    hits = np.flatnonzero(rows == A.indices)
+    positions = hits if len(hits) == n else None
+    _DIAGONALS[key] = (A.indices, positions)
+    return positions
 
 
 def _times_tangent_operator(system: System, K: sp.csr_matrix, dq: FloatArray) -> sp.csr_matrix:
