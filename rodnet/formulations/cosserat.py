@@ -16,7 +16,7 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from rodnet.assembly import SparsityPattern, assemble_vector
-from rodnet.kernels import so3
+from rodnet.kernels import so3, so3_compiled
 from rodnet.kernels.cosserat import (internal_force, internal_force_and_tangents, strain_energy,
                                      stress_resultants)
 from rodnet.kernels.cosserat_strain import (kinematics, reduce_velocity, strain_rates_from_kinematics,
@@ -97,15 +97,25 @@ class CosseratModel:
         return np.concatenate([np.repeat(self.node_mass, 3), self.rotary_inertia.ravel()])
 
     @property
+    def length_scale(self) -> float:
+        """Total length of all elements [m]."""
+        return float(self.rest_length.sum())
+
+    @property
     def force_scale(self) -> float:
         return float(self.stiffness[:, 0].max())
 
     @property
     def element_dofs(self) -> NDArray[np.int64]:
         """(E, 12) global DOFs ``[x_a, theta_a, x_b, theta_b]`` of every element."""
-        t = 3 * self.pos_nodes[:, :, None] + np.arange(3)
-        r = 3 * (self.n_nodes + self.rot_nodes[:, :, None]) + np.arange(3)
-        return np.concatenate([t[:, 0], r[:, 0], t[:, 1], r[:, 1]], axis=1)
+        cached = self.__dict__.get("_element_dofs_cache")
+        if cached is None:
+            t = 3 * self.pos_nodes[:, :, None] + np.arange(3)
+            r = 3 * (self.n_nodes + self.rot_nodes[:, :, None]) + np.arange(3)
+            cached = np.concatenate([t[:, 0], r[:, 0], t[:, 1], r[:, 1]], axis=1)
+            cached.setflags(write=False)
+            object.__setattr__(self, "_element_dofs_cache", cached)
+        return cached
 
     def rotation_dofs(self) -> NDArray[np.int64]:
         return np.arange(3 * self.n_nodes, self.n_dof)
@@ -143,7 +153,10 @@ class CosseratModel:
     def _external(self, q: RodConfiguration, t: float, load_factor: float) -> tuple[FloatArray, FloatArray]:
         """External force vector (n_dof,) and the body-frame load moments (L, 3)."""
         f = np.zeros(self.n_dof)
-        f[:3 * self.n_nodes] = (self.node_mass[:, None] * self.gravity).ravel()
+        if self.gravity.any():
+            f[:3 * self.n_nodes] = (self.node_mass[:, None] * self.gravity).ravel()
+        if len(self.load_nodes) == 0:
+            return f, np.zeros((0, 3))
         s = load_factor * self._load_scale(t)
         body_moment = np.einsum("lji,lj->li", so3.quat_to_matrix(q.quat[self._load_rot]),
                                 s[:, None] * self.load_moment)
@@ -158,9 +171,8 @@ class CosseratModel:
 
     def _gyroscopic(self, v: FloatArray) -> tuple[FloatArray, FloatArray]:
         """``W x (J W)`` (R, 3) and its derivative ``hat(W) J - hat(J W)`` (R, 3, 3)."""
-        W = v[3 * self.n_nodes:].reshape(-1, 3)
-        JW = self.rotary_inertia * W
-        return np.cross(W, JW), so3.hat(W) * self.rotary_inertia[:, None, :] - so3.hat(JW)
+        W = np.ascontiguousarray(v[3 * self.n_nodes:].reshape(-1, 3))
+        return so3_compiled.gyroscopic(W, self.rotary_inertia)
 
     # --- the System protocol -------------------------------------------------------------
 
@@ -202,7 +214,7 @@ class CosseratModel:
     def retract(self, q: RodConfiguration, dq: FloatArray) -> RodConfiguration:
         n3 = 3 * self.n_nodes
         return RodConfiguration(q.x + dq[:n3].reshape(-1, 3),
-                                so3.retract(q.quat, dq[n3:].reshape(-1, 3)))
+                                so3_compiled.retract(q.quat, np.ascontiguousarray(dq[n3:].reshape(-1, 3))))
 
     def tangent_operator(self, dq: FloatArray) -> sp.csr_matrix:
         blocks = np.concatenate([np.tile(np.eye(3), (self.n_nodes, 1, 1)),
@@ -213,8 +225,14 @@ class CosseratModel:
         return full[keep][:, keep]
 
     def times_tangent_operator(self, K: sp.csr_matrix, dq: FloatArray) -> sp.csr_matrix:
-        """``K @ tangent_operator(dq)`` without forming the operator (same pattern as K)."""
+        """``K @ tangent_operator(dq)`` without forming the operator (same pattern as K).
+
+        ``T(dq) = I - hat(dq) / 2 + O(|dq|^2)``: below 1e-4 rad the product is K itself, which
+        changes the Newton matrix by less than 5e-5 relative (Newton's convergence rate, never
+        its solution)."""
         rot = dq[3 * self.n_nodes:].reshape(-1, 3)[self._free_rot_nodes]
+        if not len(rot) or np.abs(rot).max() < 1e-4:
+            return K
         return self._pattern.right_multiply_blocks(K, self._free_rot_triples, so3.dexp(rot))
 
     @property

@@ -47,6 +47,7 @@ class MotionState:
     v: FloatArray
     vd: FloatArray
     a: FloatArray
+    vd_previous: FloatArray | None = None
 
 
 @dataclass
@@ -59,6 +60,15 @@ class Stepper:
     options: NewtonOptions = field(default_factory=NewtonOptions)
     solver: LinearSolver = field(default_factory=LinearSolver)
     started: bool = False
+    _layout_cache: tuple[NDArray[np.int64], NDArray[np.bool_]] | None = None
+
+    def _layout(self) -> tuple[NDArray[np.int64], NDArray[np.bool_]]:
+        """Positions of the rotational unknowns among the free DOFs, and the translational mask."""
+        if self._layout_cache is None:
+            free_dofs = np.flatnonzero(self.system.free)
+            is_rot = np.isin(free_dofs, self.system.rotation_dofs())
+            self._layout_cache = (np.flatnonzero(is_rot), ~is_rot)
+        return self._layout_cache
 
     def initial(self, q0: Any, v0: FloatArray, t0: float) -> MotionState:
         """The start state with the consistent acceleration vd0 = -M^-1 g(q0, v0, t0)."""
@@ -110,7 +120,7 @@ class Stepper:
                 a = (af * state.vd - am * state.a + (1.0 - af) * vd) / (1.0 - am)
                 v = state.v + h * (1.0 - gamma) * state.a + h * gamma * a
                 dq = h * (state.v + h * (0.5 - beta) * state.a + h * beta * a)
-            new = MotionState(s.retract(state.q, dq), v, vd, a)
+            new = MotionState(s.retract(state.q, dq), v, vd, a, state.vd)
             cache.update(u=u.copy(), state=new, dq=dq)
             return new, dq
 
@@ -126,9 +136,7 @@ class Stepper:
                 S = _combine(M, h * gamma * c, C, h * h * beta * c, KT)
             return M * new.vd[free] + g[free], S
 
-        rot = s.rotation_dofs()
-        rot_free = s.free[rot] if len(rot) else np.zeros(0, bool)
-        reduced_rot = np.flatnonzero(np.isin(np.flatnonzero(free), rot[rot_free]))
+        reduced_rot, free_trans = self._layout()
         d_increment = h if self.scheme == "backward-euler" else h * h * beta * c
 
         def step_limit(du: FloatArray) -> float:
@@ -137,14 +145,30 @@ class Stepper:
             largest = d_increment * np.max(np.abs(du[reduced_rot]))
             return 1.0 if largest <= self.options.max_rotation else self.options.max_rotation / largest
 
-        u0 = state.v[free] if self.scheme == "backward-euler" else state.vd[free]
+        def start(vd_guess: FloatArray) -> FloatArray:
+            return (state.v + h * vd_guess)[free] if self.scheme == "backward-euler" else vd_guess[free]
         # at the converged previous step M vd = -g, so |M vd| measures the forces acting
         scale = max(float(np.max(np.abs(M * state.vd[free]), initial=0.0)), 1e-2 * s.force_scale)
         def active_set(u: FloatArray) -> int:
             new, _ = unpack(u)
             return s.active_set(new.q, new.v)
 
-        result = newton(evaluate, u0, scale, self.solver, self.options, step_limit, active_set)
+        length = s.length_scale
+
+        def increment_small(du: FloatArray) -> bool:
+            move = d_increment * np.abs(du)
+            return bool(np.max(move[free_trans], initial=0.0) <= self.options.xtol * length
+                        and np.max(move[~free_trans], initial=0.0) <= self.options.xtol)
+
+        # predictor: the acceleration extrapolated linearly from the last two steps, which saves
+        # iterations on smooth motion; the constant-acceleration predictor when that fails
+        guesses = [state.vd] if state.vd_previous is None else \
+            [2.0 * state.vd - state.vd_previous, state.vd]
+        for guess in guesses:
+            result = newton(evaluate, start(guess), scale, self.solver, self.options, step_limit,
+                            active_set, increment_small=increment_small)
+            if result.converged:
+                break
         return unpack(result.u)[0], result
 
 

@@ -9,9 +9,10 @@ is kept while residuals contract by at least ``reuse_contraction`` and the model
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
+import scipy.linalg
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
@@ -21,7 +22,9 @@ FloatArray = NDArray[np.float64]
 
 @dataclass(frozen=True, slots=True)
 class NewtonOptions:
-    """Tolerances and limits; the residual is converged when ``|r|_inf <= atol + rtol * scale``."""
+    """Tolerances and limits; the residual is converged when ``|r|_inf <= atol + rtol * scale``,
+    or after a full Newton correction that moves no node by more than ``xtol`` times the model's
+    length scale and turns none by more than ``xtol`` rad."""
 
     rtol: float = 1e-8
     atol: float = 1e-10
@@ -29,6 +32,7 @@ class NewtonOptions:
     reuse_factorization: bool = False
     reuse_contraction: float = 0.3
     max_rotation: float = np.pi / 4
+    xtol: float = 1e-8
 
 
 @dataclass
@@ -42,16 +46,27 @@ class NewtonResult:
 
 
 class LinearSolver:
-    """Sparse LU of the iteration matrix, kept between calls until refreshed."""
+    """LU of the iteration matrix, kept between calls until refreshed: dense LAPACK below
+    ``dense_limit`` unknowns (a single thread of a few dozen elements: there SuperLU's set-up
+    costs more than the factorisation), sparse SuperLU above."""
+
+    dense_limit = 400
 
     def __init__(self) -> None:
-        self.lu: spla.SuperLU | None = None
+        self.lu: Any = None
         self.factorizations = 0
 
     def factorize(self, matrix: sp.csr_matrix) -> None:
         """Factorise; the symmetric ordering with diagonal pivots suits the (nearly symmetric,
         pattern-symmetric) tangents, partial pivoting is the fall-back."""
         self.factorizations += 1
+        if matrix.shape[0] <= self.dense_limit:
+            dense = matrix.toarray()
+            lu, piv = scipy.linalg.lu_factor(dense, check_finite=False)
+            if not np.all(np.isfinite(lu)) or np.min(np.abs(np.diag(lu)), initial=1.0) == 0.0:
+                raise RuntimeError("Factor is exactly singular")
+            self.lu = _DenseLU(lu, piv)
+            return
         csc = matrix.tocsc()
         try:
             self.lu = spla.splu(csc, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
@@ -68,11 +83,22 @@ class LinearSolver:
         return self.lu.solve(rhs)
 
 
+class _DenseLU:
+    """The ``solve`` of a dense LAPACK LU, like SuperLU's."""
+
+    def __init__(self, lu: FloatArray, piv: NDArray[np.int32]) -> None:
+        self.factors = (lu, piv)
+
+    def solve(self, rhs: FloatArray) -> FloatArray:
+        return scipy.linalg.lu_solve(self.factors, rhs, check_finite=False)
+
+
 def newton(evaluate: Callable[[FloatArray, bool], tuple[FloatArray, sp.csr_matrix | None]],
            u0: FloatArray, scale: float, solver: LinearSolver, options: NewtonOptions,
            step_limit: Callable[[FloatArray], float] | None = None,
            active_set: Callable[[FloatArray], int] | None = None,
-           on_accept: Callable[[FloatArray], None] | None = None) -> NewtonResult:
+           on_accept: Callable[[FloatArray], None] | None = None,
+           increment_small: Callable[[FloatArray], bool] | None = None) -> NewtonResult:
     """Solve ``r(u) = 0``.
 
     Parameters
@@ -91,6 +117,12 @@ def newton(evaluate: Callable[[FloatArray, bool], tuple[FloatArray, sp.csr_matri
         Fingerprint of the non-smooth state at ``u``; a change refreshes a reused factorisation.
     on_accept : callable, optional
         Told every accepted iterate (lets the caller re-base a configuration).
+    increment_small : callable, optional
+        ``increment_small(du) -> bool``: a correction ``du`` moves the configuration by less than
+        the caller's length and angle tolerances. The line search computes the next (simplified)
+        Newton correction at the new iterate; when that is small, the iterate is within it of the
+        solution and is accepted, even if the residual test, relative to a force scale, is
+        stricter than the configuration needs.
     """
     u = np.array(u0, dtype=float)
     start_factorizations = solver.factorizations
@@ -112,9 +144,13 @@ def newton(evaluate: Callable[[FloatArray, bool], tuple[FloatArray, sp.csr_matri
         du = -solver.solve(r)
         if step_limit is not None:
             du *= min(1.0, step_limit(du))
-        u, r_new, norm_new = _line_search(evaluate, solver, u, du)
+        u, r_new, norm_new, next_du = _line_search(evaluate, solver, u, du)
         if on_accept is not None:
             on_accept(u)
+        if increment_small is not None and next_du is not None and increment_small(next_du):
+            # the correction is already solved for: apply it (a simplified Newton step)
+            return NewtonResult(u + next_du, True, iteration,
+                                solver.factorizations - start_factorizations, norm_new)
         contraction = norm_new / norm if norm > 0 else 0.0
         new_fingerprint = active_set(u) if active_set is not None else 0
         fresh = (not options.reuse_factorization or contraction > options.reuse_contraction
@@ -141,12 +177,13 @@ def _line_search(evaluate, solver, u, du):  # type: ignore[no-untyped-def]
         r, _ = evaluate(trial, False)
         n = float(np.max(np.abs(r), initial=0.0))
         if np.isfinite(n):
-            correction = float(np.linalg.norm(solver.solve(r)))
-            if correction <= (1.0 - 0.25 * alpha) * size or size == 0.0:
-                return trial, r, n
-            if best is None or correction < best[3]:
-                best = (trial, r, n, correction)
+            correction = solver.solve(r)
+            size_next = float(np.linalg.norm(correction))
+            if size_next <= (1.0 - 0.25 * alpha) * size or size == 0.0:
+                return trial, r, n, -correction
+            if best is None or size_next < best[3]:
+                best = (trial, r, n, size_next)
         alpha *= 0.5
     if best is None:
-        return u + du, np.full_like(u, np.nan), float("nan")
-    return best[:3]
+        return u + du, np.full_like(u, np.nan), float("nan"), None
+    return (*best[:3], None)

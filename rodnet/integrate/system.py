@@ -27,6 +27,8 @@ class System(Protocol):
     force_scale: float
     """A characteristic internal force [N] (e.g. the largest axial stiffness EA): Newton's
     tolerance is relative to the larger of the step's forces and 1 % of this."""
+    length_scale: float
+    """A characteristic size of the model [m] (Newton's position tolerance is relative to it)."""
     free: NDArray[np.bool_]
     """(n_dof,) DOFs that move; the others are supported and keep zero velocity."""
 

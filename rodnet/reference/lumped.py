@@ -145,6 +145,11 @@ class LumpedModel:
         return 3 * self.structure.n_nodes
 
     @property
+    def length_scale(self) -> float:
+        """Total length of all segments [m]."""
+        return float(self.rest_length.sum())
+
+    @property
     def force_scale(self) -> float:
         return float(self.EA.max())
 

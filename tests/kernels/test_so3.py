@@ -167,3 +167,16 @@ def test_hat_is_the_cross_product():
     rng = np.random.default_rng(13)
     a, b = rng.normal(size=(2, 10, 3))
     np.testing.assert_allclose(np.einsum("nij,nj->ni", so3.hat(a), b), np.cross(a, b), atol=1e-15)
+
+
+def test_compiled_retract_and_gyroscopic_match_numpy() -> None:
+    from rodnet.kernels import so3_compiled
+
+    rng = np.random.default_rng(7)
+    q = so3.quat_normalize(rng.normal(size=(50, 4)))
+    dtheta = rng.normal(size=(50, 3)) * np.logspace(-9, 0.5, 50)[:, None]
+    np.testing.assert_allclose(so3_compiled.retract(q, dtheta), so3.retract(q, dtheta), atol=1e-15)
+    W, J = rng.normal(size=(50, 3)), rng.uniform(0.5, 2.0, size=(50, 3))
+    f, d = so3_compiled.gyroscopic(W, J)
+    np.testing.assert_allclose(f, np.cross(W, J * W), atol=1e-14)
+    np.testing.assert_allclose(d, so3.hat(W) * J[:, None, :] - so3.hat(J * W), atol=1e-14)
