@@ -114,6 +114,11 @@ class Structure:
     def n_nodes(self) -> int:
         return len(self.positions)
 
+    @property
+    def size(self) -> float:
+        """Diagonal of the stress-free bounding box [m]."""
+        return float(np.linalg.norm(np.ptp(self.rest_positions, axis=0)))
+
     def node(self, selector: str, key: str) -> int:
         """Node index of ``selector``; ``key`` names the scene key for the error message."""
         if selector in self.selectors:

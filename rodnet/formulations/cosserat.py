@@ -79,6 +79,7 @@ class CosseratModel:
     kink_strain: float
     load_rot_nodes: NDArray[np.int64] | None = None
     end_offset: FloatArray | None = None
+    size: float = 1.0
 
     @property
     def n_nodes(self) -> int:
@@ -98,8 +99,8 @@ class CosseratModel:
 
     @property
     def length_scale(self) -> float:
-        """Total length of all elements [m]."""
-        return float(self.rest_length.sum())
+        """Size of the structure [m]: the diagonal of its stress-free bounding box."""
+        return self.size
 
     @property
     def force_scale(self) -> float:

@@ -114,7 +114,8 @@ def build_cosserat(scene: Scene, structure: Structure) -> tuple[CosseratModel, R
         load_force=np.array([l.force for l in scene.loads], float).reshape(-1, 3),
         load_moment=np.array([l.moment for l in scene.loads], float).reshape(-1, 3),
         load_ramp=np.array([l.ramp for l in scene.loads], float),
-        tension_only=scene.model.axial == "tension-only", kink_strain=scene.model.kink_strain)
+        tension_only=scene.model.axial == "tension-only", kink_strain=scene.model.kink_strain,
+        size=structure.size)
     v0 = np.zeros(6 * n)
     v0[:3 * n] = structure.velocities.ravel()
     v0[~free] = 0.0

@@ -109,7 +109,8 @@ def build_cosserat_net(scene: Scene, structure: Structure, section: dict[str, Fl
         load_moment=np.array([l.moment for l in scene.loads], float).reshape(-1, 3),
         load_ramp=np.array([l.ramp for l in scene.loads], float),
         tension_only=scene.model.axial == "tension-only", kink_strain=scene.model.kink_strain,
-        load_rot_nodes=np.maximum(node_rotation[load_nodes], 0), end_offset=end_offset)
+        load_rot_nodes=np.maximum(node_rotation[load_nodes], 0), end_offset=end_offset,
+        size=structure.size)
     v0 = np.zeros(model.n_dof)
     v0[:3 * n_nodes] = structure.velocities.ravel()
     v0[~free] = 0.0

@@ -32,7 +32,7 @@ class NewtonOptions:
     reuse_factorization: bool = False
     reuse_contraction: float = 0.3
     max_rotation: float = np.pi / 4
-    xtol: float = 1e-8
+    xtol: float = 1e-7
 
 
 @dataclass

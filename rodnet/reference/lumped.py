@@ -146,8 +146,8 @@ class LumpedModel:
 
     @property
     def length_scale(self) -> float:
-        """Total length of all segments [m]."""
-        return float(self.rest_length.sum())
+        """Size of the structure [m]: the diagonal of its stress-free bounding box."""
+        return self.structure.size
 
     @property
     def force_scale(self) -> float:
