@@ -56,9 +56,10 @@ class SimulationSpec:
     explicit_safety: float = 0.5
     rtol: float = 1.0e-6
     reuse_factorization: bool = False
+    dt_max: float | None = None
 
     def __post_init__(self) -> None:
-        _positive(self, "duration", "dt", "rtol")
+        _positive(self, "duration", "dt", "rtol", "dt_max")
         require(0.0 <= self.rho_inf <= 1.0, "rho_inf", self.rho_inf, "must be in [0, 1]")
         require(self.load_steps >= 1, "load_steps", self.load_steps, "must be an integer >= 1")
         require(0.0 < self.explicit_safety <= 1.0, "explicit_safety", self.explicit_safety,

@@ -198,7 +198,8 @@ def _integrate(p: Prepared, recorder: Recorder, bar: Progress, stats: StepStats)
 
         return integrate_explicit(p.model, p.q0, p.v0, p.times, p.dt, recorder, bar)
     stepper = Stepper(p.model, p.scene.integrator, sim.rho_inf, options)
-    return integrate_implicit(stepper, p.q0, p.v0, p.times, p.dt, sim.adaptive, recorder, bar)
+    return integrate_implicit(stepper, p.q0, p.v0, p.times, p.dt, sim.adaptive, recorder, bar,
+                              dt_max=sim.dt_max)
 
 
 def _summary(p: Prepared, arrays: dict[str, NDArray[Any]], stats: StepStats, status: str,

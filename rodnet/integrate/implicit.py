@@ -216,8 +216,9 @@ def integrate_implicit(stepper: Stepper, q0: Any, v0: FloatArray, times: NDArray
                        min_dt: float = 1e-12) -> StepStats:
     """March from ``times[0]`` to ``times[-1]`` landing on every frame time.
 
-    Adaptive: a step whose Newton solve fails is retried with half the step; after three steps
-    that each converged within three iterations the step grows by 1.5 (up to ``dt_max``).
+    Adaptive: a step whose Newton solve fails is retried with half the step; after two steps
+    in a row that each converged within four iterations the step grows by a quarter, up to
+    ``dt_max`` (default: the interval between saved frames).
 
     Raises
     ------
@@ -228,7 +229,8 @@ def integrate_implicit(stepper: Stepper, q0: Any, v0: FloatArray, times: NDArray
     state = stepper.initial(q0, v0, float(times[0]))
     on_frame(float(times[0]), state.q, state.v)
     t, h, easy = float(times[0]), dt, 0
-    dt_max = dt_max if dt_max is not None else max(dt, float(np.diff(times).max(initial=dt)))
+    frame_gap = float(np.diff(times).max(initial=dt))
+    dt_max = max(dt, frame_gap) if dt_max is None else max(dt, dt_max)
     for t_frame in times[1:]:
         while t < t_frame - 1e-12 * max(1.0, abs(t_frame)):
             h_try = min(h, t_frame - t)
@@ -246,9 +248,9 @@ def integrate_implicit(stepper: Stepper, q0: Any, v0: FloatArray, times: NDArray
                 continue
             state, t = new, t + h_try
             stats.record_step(h_try)
-            easy = easy + 1 if result.iterations <= 3 else 0
-            if adaptive and easy >= 3 and h_try == h:
-                h, easy = min(1.5 * h, dt_max), 0
+            easy = easy + 1 if result.iterations <= 4 else 0
+            if adaptive and easy >= 2 and h_try == h:
+                h, easy = min(1.25 * h, dt_max), 0
             if on_progress is not None:
                 on_progress(t, h_try, stats)
         on_frame(float(t_frame), state.q, state.v)

@@ -60,6 +60,8 @@ class LinearSolver:
         """Factorise; the symmetric ordering with diagonal pivots suits the (nearly symmetric,
         pattern-symmetric) tangents, partial pivoting is the fall-back."""
         self.factorizations += 1
+        if not np.isfinite(matrix.data).all():  # SuperLU can loop forever on NaN
+            raise FloatingPointError("non-finite iteration matrix")
         if matrix.shape[0] <= self.dense_limit:
             dense = matrix.toarray()
             lu, piv = scipy.linalg.lu_factor(dense, check_finite=False)
@@ -140,7 +142,11 @@ def newton(evaluate: Callable[[FloatArray, bool], tuple[FloatArray, sp.csr_matri
         if fresh:
             if S is None:
                 _, S = evaluate(u, True)
-            solver.factorize(S)
+            try:
+                solver.factorize(S)
+            except FloatingPointError as exc:
+                return NewtonResult(u, False, iteration - 1,
+                                    solver.factorizations - start_factorizations, norm, str(exc))
         du = -solver.solve(r)
         if step_limit is not None:
             du *= min(1.0, step_limit(du))
