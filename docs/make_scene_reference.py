@@ -24,60 +24,91 @@ OUTPUT = Path(__file__).with_name("scene_reference.md")
 DESCRIPTIONS: dict[str, tuple[str, str]] = {
     # [simulation]
     "simulation.type": (
-        "", '"dynamic": integrate in time. "static" (load-stepped equilibrium) is refused by this '
-        "version."),
-    "simulation.duration": ("s", "Simulated time of a dynamic run; > 0."),
+        "", '"dynamic": integrate in time. "static": the equilibrium under the loads, raised in '
+        "`load_steps` equal increments of a load factor; one frame per load step, with the load "
+        "factor as its `time`. A static scene whose structure is not held against rigid motion "
+        "(its unloaded stiffness is singular: a free or merely pinned rod, cable threads, or the "
+        'tension-only axial law, which has no stiffness at zero strain) is refused. See '
+        "[the rod model](rod_model.md#static-runs)."),
+    "simulation.duration": ("s", "Simulated time of a dynamic run; > 0. Not used by static runs."),
     "simulation.dt": (
-        "s", "Time step of the explicit integrator when `adaptive = false`; > 0. A scene whose `dt` "
-        "exceeds the explicit stability limit (S10) is refused. The step used is `dt` shrunk so "
-        "that a whole number of steps fits each frame interval. Not used when `adaptive = true`, "
-        "nor by `rk45`."),
+        "s", "> 0. Explicit integrator with `adaptive = false`: the step, shrunk so that a whole "
+        "number of steps fits each frame interval; a `dt` above the explicit stability limit (S10) "
+        "is refused. Implicit integrators: the first step (`adaptive = true`) or the fixed step "
+        "(`adaptive = false`); steps are cut short to land on every frame time. Not used by the "
+        "explicit integrator with `adaptive = true`, by `rk45` or by static runs."),
     "simulation.adaptive": (
         "", "Explicit integrator: `true` sets the step to `explicit_safety` times the stability "
-        "limit (S10) of the scene, computed once before the run; `false` uses `dt`. Not used by "
-        "`rk45`, which always controls its step with `rtol`."),
+        "limit (S10) of the scene, computed once before the run; `false` uses `dt`. Implicit "
+        "integrators: `true` halves the step when Newton's method fails and grows it by a quarter "
+        "after two steps in a row that each converged within four iterations, up to `dt_max`; "
+        "`false` keeps `dt`, and a step whose Newton solve fails ends the run. Not used by "
+        "`rk45`, which controls its step with `rtol`."),
     "simulation.integrator": (
-        "", 'Not set: "explicit" for `model.type = "lumped"`, "generalized-alpha" otherwise. This '
-        'version runs "explicit" (symplectic Euler, compiled) and "rk45" (scipy\'s adaptive '
-        'Dormand-Prince, the reference); "generalized-alpha" and "backward-euler" are refused.'),
+        "", 'Not set: "explicit" for `model.type = "lumped"`, "generalized-alpha" otherwise. '
+        '"generalized-alpha": implicit, second order, numerical dissipation set by `rho_inf`. '
+        '"backward-euler": implicit, first order, strongly dissipative. "explicit": symplectic '
+        'Euler, compiled. "rk45": scipy\'s adaptive Dormand-Prince, the reference. "explicit" and '
+        '"rk45" run the lumped model and cable threads (`model.type = "cosserat"` with `bending` '
+        "and `torsion` both false) only; rods with bending or torsion need an implicit integrator. "
+        "Static runs do not use it. See [the rod model](rod_model.md#integrators)."),
     "simulation.rho_inf": (
-        "-", "Spectral radius at infinite frequency of generalized-alpha, in [0, 1]. Not used in "
-        "this version."),
-    "simulation.gravity": ("m/s^2", "Uniform gravitational acceleration; node `i` gets the force `m_i g`."),
+        "-", '"generalized-alpha": spectral radius at infinite frequency, in [0, 1]. 1 keeps the '
+        "highest frequencies undamped (fragile on stiff rods), 0 removes them within a step; the "
+        'default 0.7 damps the unresolved modes and keeps second order. Not used by the other '
+        "integrators."),
+    "simulation.gravity": (
+        "m/s^2", "Uniform gravitational acceleration; node `i` gets the force `m_i g`. Static runs "
+        "of Cosserat rods apply it in full at every load step (the load factor scales `[[loads]]` "
+        "only)."),
     "simulation.load_steps": (
-        "", "Static runs: number of load increments, >= 1. Not used in this version."),
+        "", "Static runs: number of equal load increments, >= 1; each saves one frame. An "
+        "increment whose Newton solve fails is split in two, up to 6 times. The solution does not "
+        "depend on it; more steps can cost fewer Newton iterations on strongly nonlinear problems."),
     "simulation.explicit_safety": (
         "-", "Explicit integrator with `adaptive = true`: the step is this fraction of the "
         "stability limit (S10), in (0, 1]. The limit is an estimate, not a bound; see "
         "[the lumped model](lumped_model.md#time-step)."),
     "simulation.rtol": (
-        "-", "`rk45`: relative tolerance, in (0, 1). The absolute tolerance is `rtol` x 1e-3 "
-        "(metres for positions, m/s for velocities). Implicit integrators: Newton's residual "
-        "tolerance is rtol x 1e-2 (at most 1e-8) of the step's force scale."),
+        "-", "In (0, 1). `rk45`: relative tolerance; the absolute tolerance is `rtol` x 1e-3 "
+        "(metres for positions, m/s for velocities). Implicit integrators and static runs: "
+        "Newton's residual tolerance is `min(rtol, 1e-6)` x 1e-2 times the force scale (the "
+        "forces acting in the step, at least 1 % of the largest `EA`), plus 1e-10 N."),
+    "simulation.dt_max": (
+        "s", "> 0. Implicit integrators with `adaptive = true`: the largest step the adaptive "
+        "control may grow to. Not set: the larger of `dt` and `output.frame_interval`; a value "
+        "below `dt` counts as `dt`."),
     "simulation.reuse_factorization": (
-        "-", "Implicit integrators: keep the LU factorisation of the iteration matrix across "
-        "Newton iterations and steps while residuals contract by at least 0.3 and no thread "
-        "changes between slack and taut; refactorise otherwise. Off by default: measure first."),
+        "-", "Implicit integrators and static runs: keep the LU factorisation of the iteration "
+        "matrix across Newton iterations and steps while residuals contract by at least 0.3 and "
+        "no thread changes between slack and taut; refactorise otherwise. Off by default: measure "
+        "first."),
     # [model]
     "model.type": (
-        "", '"lumped": point masses joined by tension-only spring-dampers '
-        "([formulation](../elements/spring/FORMULATION.md)). \"cosserat\" (rod elements with "
-        "bending and torsion) is refused by this version, and it is the default, so a scene must "
-        'set "lumped".'),
+        "", '"cosserat": geometrically exact rod elements with bending, torsion and shear '
+        "([element](../elements/cosserat/FORMULATION.md), [rod model](rod_model.md)); with "
+        '`bending` and `torsion` both false, cable threads. "lumped": point masses joined by '
+        "spring-dampers ([formulation](../elements/spring/FORMULATION.md), "
+        "[lumped model](lumped_model.md))."),
     "model.elements_per_thread": (
-        "", "Segments per net thread (mesh threads and corner threads), >= 1. `[[rods]]` give "
-        "their own count in `elements`."),
+        "", "Elements (segments) per net thread (mesh threads and corner threads), >= 1. "
+        "`[[rods]]` give their own count in `elements`."),
     "model.bending": (
-        "", "Cosserat model only. No effect on the lumped model, which has no bending stiffness."),
+        "", '`model.type = "cosserat"`: false sets the bending stiffness `EI` to zero. With '
+        "`torsion` also false the threads are cables: translations only, the lumped model's "
+        "equations. No effect on the lumped model."),
     "model.torsion": (
-        "", "Cosserat model only. No effect on the lumped model, which has no torsional "
-        "stiffness."),
+        "", '`model.type = "cosserat"`: false sets the torsional stiffness `GJ` to zero; see '
+        "`bending`. No effect on the lumped model."),
     "model.axial": (
-        "", '"tension-only": `N = max(0, EA r(e) + viscosity A r\'(e) de/dt)`, a thread never '
-        'pushes (S5). "linear": `N = EA e + viscosity A de/dt`, also resists compression (S3).'),
+        "", '"tension-only": `N = max(0, EA r(e) + tau EA r\'(e) de/dt)`, `tau = viscosity / E`: '
+        'a thread never pushes (S5). "linear": `N = EA e + tau EA de/dt`, also resists '
+        "compression (S3); beams, columns and static runs need it. Both models."),
     "model.knots": (
-        "", '"rigid": threads share the knot rotation; "pinned": shared position only. Cosserat '
-        "model only: in the lumped model every knot is a single node without rotation, a pin."),
+        "", 'Cosserat net: "rigid": the threads meeting at a knot share its rotation, so the knot '
+        'passes bending and torsion from thread to thread; "pinned": shared position only, no '
+        "moment passes. No effect on `[[rods]]`, the lumped model or cable threads, where every "
+        "knot is a pin."),
     "model.kink_strain": (
         "-", "Kink strain `delta` of the C1 ramp that smooths the tension-only law at `e = 0` "
         "(S4), in [0, 0.01); 0 gives the sharp kink. Above `delta` the force is `EA delta / 2` "
@@ -86,31 +117,36 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
     "materials.name": (
         "", "Unique, non-empty; named by `net.material` and `rods.material`."),
     "materials.density": (
-        "kg/m^3", "> 0. Mass per length `rho A` of the solid circular section, unless "
-        "`mass_per_length` is given."),
+        "kg/m^3", "> 0. Mass per length `rho A` and rotary inertia per length `rho I` of the solid "
+        "circular section, unless `mass_per_length` or `rotary_inertia_per_length` is given."),
     "materials.youngs_modulus": (
-        "Pa", "`E` > 0. Axial stiffness `EA = E A`, unless `axial_stiffness` is given."),
+        "Pa", "`E` > 0. `EA = E A` and `EI = E I`, unless overridden; also sets the retardation "
+        "time `tau = viscosity / E`."),
     "materials.diameter": (
-        "m", "`d` > 0 of the solid circular section, `A = pi d^2 / 4`. `A` also enters the "
-        "viscous coefficient `viscosity A`."),
+        "m", "`d` > 0 of the solid circular section: `A = pi d^2 / 4`, `I = pi d^4 / 64`, "
+        "`J = 2 I`."),
     "materials.poisson_ratio": (
         "-", "`nu` in (-1, 0.5): `G = E / (2 (1 + nu))`; give either this or `shear_modulus`. "
-        "Cosserat model only (shear, torsion); no effect on the lumped model."),
+        "Cosserat rods only (`GA`, `GJ`); no effect on the lumped model and cable threads."),
     "materials.shear_modulus": (
-        "Pa", "`G` > 0; give either this or `poisson_ratio` (neither: `nu = 0.3`). Cosserat model "
+        "Pa", "`G` > 0; give either this or `poisson_ratio` (neither: `nu = 0.3`). Cosserat rods "
         "only."),
     "materials.viscosity": (
-        "Pa s", "Kelvin-Voigt viscosity >= 0: the axial force gains `viscosity A de/dt`; a segment "
-        "of rest length `l0` has the dashpot `c = viscosity A / l0` [N s/m]."),
+        "Pa s", "Kelvin-Voigt viscosity >= 0. The retardation time `tau = viscosity / E` damps "
+        "every section mode: each stress resultant gains `tau` x its stiffness x its strain rate. "
+        "Axially, a segment of rest length `l0` has the dashpot `c = tau EA / l0` [N s/m] "
+        "(`= viscosity A / l0` without an `axial_stiffness` override)."),
     "materials.axial_stiffness": (
-        "N", "Override of `EA`, > 0 (braided threads). The viscous coefficient stays "
-        "`viscosity A` with the geometric `A`."),
-    "materials.shear_stiffness": ("N", "Override of `GA`, > 0. Cosserat model only."),
-    "materials.bending_stiffness": ("N m^2", "Override of `EI`, > 0. Cosserat model only."),
-    "materials.torsional_stiffness": ("N m^2", "Override of `GJ`, > 0. Cosserat model only."),
-    "materials.mass_per_length": ("kg/m", "Override of `rho A`, > 0."),
+        "N", "Override of `EA`, > 0 (braided threads). The axial damping follows it: `tau EA`."),
+    "materials.shear_stiffness": (
+        "N", "Override of `GA`, > 0, for both shear directions. Cosserat rods only."),
+    "materials.bending_stiffness": (
+        "N m^2", "Override of `EI`, > 0, about both bending axes. Cosserat rods only."),
+    "materials.torsional_stiffness": ("N m^2", "Override of `GJ`, > 0. Cosserat rods only."),
+    "materials.mass_per_length": ("kg/m", "Override of `rho A`, > 0. Both models."),
     "materials.rotary_inertia_per_length": (
-        "kg m", "Override of `rho I`, > 0. Cosserat model only."),
+        "kg m", "Override of `rho I`, the rotary inertia per length about a bending axis, > 0; "
+        "about the rod axis it is `2 rho I`. Cosserat rods only."),
     # [net]
     "net.material": ("", "Name of a `[[materials]]` entry; required."),
     "net.layout": (
@@ -124,10 +160,11 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
         "it; mouth area and distance are measured with it."),
     "net.packing": (
         "-", "Initial size / deployed size, in (0, 1]. Every initial position is the flat "
-        "deployed layout scaled by `packing` about `center`, so the threads start slack and "
-        "stress-free."),
+        "deployed layout scaled by `packing` about `center`; every thread keeps its direction, "
+        "so the threads start straight with axial strain `packing - 1`: slack and free of force "
+        'with `axial = "tension-only"`, compressed with `"linear"`.'),
     "net.knot_mass": ("kg", "Point mass added at every knot, >= 0."),
-    "net.corner_mass": ("kg", "Each of the four corner masses, > 0."),
+    "net.corner_mass": ("kg", "Each of the four corner masses, > 0 (no rotary inertia)."),
     "net.corner_thread_length": (
         "m", "Rest length of the thread from a corner knot to its corner mass, > 0; the corner "
         "mass lies on the extension of the net's diagonal."),
@@ -143,33 +180,37 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
     "rods.material": ("", "Name of a `[[materials]]` entry; required."),
     "rods.points": (
         "m", "Polyline of the stress-free centreline, at least two points, consecutive points "
-        "distinct. The rod starts in this shape."),
+        "distinct. The rod starts in this shape, free of stress."),
     "rods.elements": (
-        "", "Segments along the whole rod, at least one per polyline segment; spread by arc "
+        "", "Elements along the whole rod, at least one per polyline segment; spread by arc "
         "length, every polyline vertex kept as a node."),
-    "rods.velocity": ("m/s", "Initial velocity of every node of the rod."),
+    "rods.velocity": ("m/s", "Initial velocity of every node of the rod (rotations start at rest)."),
     # [[supports]]
     "supports.node": ("", "Node selector, e.g. `\"beam:start\"`, `\"net:knot:12\"`."),
     "supports.fix": (
-        "", '"clamp": position and rotation fixed; "pin": position fixed. The lumped model has no '
-        "rotations, so both fix the position only."),
+        "", '"clamp": position and rotation fixed; "pin": position fixed, free to turn. In the '
+        "lumped model, in cable threads, and at nodes without a single rotation (pinned knots, "
+        "corner masses) both fix the position only."),
     "supports.dofs": (
         "-", "Optional list of the DOFs to fix instead of `fix`'s set: `x`, `y`, `z` (global "
         "translations) and `r1`, `r2`, `r3` (rotations about the node's material axes; `r1` is the "
-        "twist about the rod axis). E.g. a roller `[\"y\", \"z\"]`, a pin that also stops twist "
-        "`[\"x\", \"y\", \"z\", \"r1\"]`. Lumped models and cables take whole nodes only."),
+        "twist about the rod axis, `r2`, `r3` bending). E.g. a roller sliding along x "
+        "`[\"y\", \"z\"]`, a pin that also stops twist `[\"x\", \"y\", \"z\", \"r1\"]`. The lumped "
+        "model and cable threads take whole nodes only (`[\"x\", \"y\", \"z\"]`)."),
     # [[loads]]
     "loads.node": ("", "Node selector."),
     "loads.force": ("N", "Dead load: fixed global direction and magnitude."),
     "loads.moment": (
-        "N m", "Dead moment about a fixed global axis. Must be zero in the lumped model, which has "
-        "no rotations; a non-zero moment is refused."),
+        "N m", "Dead moment about fixed global axes. Cosserat rods only: refused in the lumped "
+        "model and cable threads (no rotations), and at pinned knots and corner masses of a "
+        "Cosserat net (no single rotation)."),
     "loads.ramp": (
-        "s", ">= 0. The load grows linearly from zero to full over this time; 0 applies it in full "
-        "from t = 0."),
+        "s", ">= 0. Dynamic runs: the load grows linearly from zero to full over this time; 0 "
+        "applies it in full from t = 0. Static runs: leave it at 0 (the load factor does the "
+        "ramping; a ramp longer than 1 s reduces the static load by the factor 1 / ramp)."),
     # [[masses]]
     "masses.node": ("", "Node selector."),
-    "masses.mass": ("kg", "Point mass added at the node, > 0."),
+    "masses.mass": ("kg", "Point mass added at the node, > 0 (no rotary inertia)."),
     "masses.velocity": (
         "m/s", "Initial velocity of that node, replacing the rod's or net's; not set: unchanged."),
     # [output]
@@ -177,9 +218,10 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
         "", "Output directory, relative to the working directory; `-o DIR` on the command line "
         "overrides it."),
     "output.frame_interval": (
-        "s", "Time between saved frames, > 0; a last frame is saved at `duration` when it is not "
-        "a multiple."),
-    "output.vtk": ("", "Write `vtk/frame_NNNNN.vtu` per frame and `result.pvd`."),
+        "s", "Dynamic runs: time between saved frames, > 0; a last frame is saved at `duration` "
+        "when it is not a multiple. Static runs save one frame per load step instead."),
+    "output.vtk": (
+        "", "Write `vtk/frame_NNNNN.vtu` per frame and `result.pvd`."),
     "output.picture": (
         "", "`rodnet` command, a net, a successful run: draw `net.png`, the net at its maximum "
         "mouth area (pyvista, `viz` extra)."),
@@ -206,11 +248,14 @@ absent unless given. A scene needs a `[net]` or at least one `[[rods]]`, and a `
 entry for every material they name; the other sections may be left out.
 
 Equation numbers (S1)-(S10) refer to
-[elements/spring/FORMULATION.md](../elements/spring/FORMULATION.md).
+[elements/spring/FORMULATION.md](../elements/spring/FORMULATION.md), (C1)-(C38) to
+[elements/cosserat/FORMULATION.md](../elements/cosserat/FORMULATION.md). "Cosserat rods" below
+means `model.type = "cosserat"` with `bending` or `torsion` on; "cable threads" means
+`model.type = "cosserat"` with both off, which runs the lumped model's equations.
 
 Not in this version: the sections `[[bodies]]` (rigid bodies) and `[contact]` are refused with
-an error. Keys that only the Cosserat model, static runs or implicit integrators use are read
-and checked but have no effect; their descriptions say so.
+an error. Keys that only one model or one kind of run uses are read and checked by all; the
+descriptions say where a key has no effect.
 """
 
 
