@@ -154,8 +154,8 @@ class CosseratModel:
     def _external(self, q: RodConfiguration, t: float, load_factor: float) -> tuple[FloatArray, FloatArray]:
         """External force vector (n_dof,) and the body-frame load moments (L, 3)."""
         f = np.zeros(self.n_dof)
-        if self.gravity.any():
-            f[:3 * self.n_nodes] = (self.node_mass[:, None] * self.gravity).ravel()
+        if self.gravity.any():  # raised with the loads in a static run, like the lumped model
+            f[:3 * self.n_nodes] = load_factor * (self.node_mass[:, None] * self.gravity).ravel()
         if len(self.load_nodes) == 0:
             return f, np.zeros((0, 3))
         s = load_factor * self._load_scale(t)

@@ -31,6 +31,11 @@ from rodnet.integrate.system import System
 FloatArray = NDArray[np.float64]
 
 
+STATIC_TIME = float("inf")
+"""The time at which a static run evaluates loads: every ``ramp`` is complete, so only the load
+factor raises them."""
+
+
 def chung_hulbert(rho_inf: float) -> tuple[float, float, float, float]:
     """``(alpha_m, alpha_f, gamma, beta)`` of generalized-alpha for spectral radius ``rho_inf``."""
     alpha_m = (2.0 * rho_inf - 1.0) / (rho_inf + 1.0)
@@ -269,7 +274,7 @@ def solve_static(system: System, q0: Any, load_steps: int, options: NewtonOption
     zero = np.zeros(system.n_dof)
     free = system.free
     q = q0
-    loads = system.generalized_force(q0, zero, 1.0, 1.0) - system.generalized_force(q0, zero, 1.0, 0.0)
+    loads = system.generalized_force(q0, zero, STATIC_TIME, 1.0) - system.generalized_force(q0, zero, STATIC_TIME, 0.0)
     scale = max(float(np.max(np.abs(loads))), 1e-2 * system.force_scale)
     on_frame(0.0, q, zero)
     done, target_steps = 0.0, [k / load_steps for k in range(1, load_steps + 1)]
@@ -308,8 +313,8 @@ def _static_increment(system: System, q_start: Any, load: float, options: Newton
     def evaluate(u: FloatArray, need_matrix: bool) -> tuple[FloatArray, sp.csr_matrix | None]:
         q = moved(u)
         if not need_matrix:
-            return system.generalized_force(q, zero, 1.0, load)[free], None
-        g, K, _ = system.tangents(q, zero, 1.0, load)
+            return system.generalized_force(q, zero, STATIC_TIME, load)[free], None
+        g, K, _ = system.tangents(q, zero, STATIC_TIME, load)
         dq = np.zeros(system.n_dof)
         dq[free] = u - base["u"]
         return g[free], _times_tangent_operator(system, K, dq).tocsr()

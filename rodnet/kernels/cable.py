@@ -27,7 +27,7 @@ def cable_tangents(x_a: FloatArray, x_b: FloatArray, v_a: FloatArray, v_b: Float
     x_a, x_b, v_a, v_b : (E, 3) float
         End positions [m] and velocities [m/s].
     rest_length, EA, etaA : (E,) float
-        l0 [m], axial stiffness [N], viscosity * A [N s].
+        l0 [m], axial stiffness [N], axial viscous coefficient tau EA [N s].
 
     Returns
     -------

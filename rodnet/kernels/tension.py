@@ -44,7 +44,7 @@ def axial_force(strain: FloatArray, strain_rate: FloatArray, EA: FloatArray, eta
     strain, strain_rate : (E,) float
         ``e`` and ``de/dt`` [1/s].
     EA, etaA : (E,) float
-        Axial stiffness [N] and axial viscous coefficient viscosity * A [N s].
+        Axial stiffness [N] and axial viscous coefficient tau EA [N s] (tau = viscosity / E).
     kink_strain : float
         See :func:`ramp`.
     tension_only : bool

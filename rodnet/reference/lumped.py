@@ -1,7 +1,7 @@
 """The lumped-parameter reference net: point masses joined by tension-only Kelvin-Voigt segments.
 
 Equations: ``elements/spring/FORMULATION.md``. Each segment of the :class:`~rodnet.topology.Structure`
-is one spring-damper (k = EA / l0, c = viscosity * A / l0); half of each segment's mass goes to
+is one spring-damper (k = EA / l0, c = tau EA / l0 with tau = viscosity / E); half of each segment's mass goes to
 each end, concentrated masses are added, supported nodes do not move.
 """
 
@@ -36,7 +36,8 @@ class LumpedModel:
     inv_mass : (N,) float
         1 / mass, zero for supported nodes (they never accelerate).
     EA, etaA : (E,) float
-        Axial stiffness [N] and viscous coefficient viscosity * A [N s] of each segment.
+        Axial stiffness [N] and viscous coefficient tau EA [N s] (tau = viscosity / E) of each
+        segment.
     kink_strain : float
     tension_only : bool
     gravity_force : (N, 3) float
