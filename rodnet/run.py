@@ -97,7 +97,8 @@ def _check_supported(model: Any, q0: Any, supports: list[str]) -> None:
         raise SceneError("supports", supports or "none",
                          f"the structure is not held against rigid motion: its static stiffness has "
                          f"{singular} zero mode(s). Add [[supports]] (a clamp, or pins that stop every "
-                         "translation and rotation) or run it dynamically")
+                         "translation and rotation) or run it dynamically; with axial = 'tension-only' "
+                         "a thread at rest has no axial stiffness at all: use 'linear' for structures")
 
 
 @dataclass
@@ -188,18 +189,18 @@ def _integrate(p: Prepared, recorder: Recorder, bar: Progress, stats: StepStats)
     options = NewtonOptions(rtol=min(sim.rtol, 1e-6) * 1e-2,
                             reuse_factorization=sim.reuse_factorization)
     if sim.type == "static":
-        return solve_static(p.model, p.q0, sim.load_steps, options, recorder)
+        return solve_static(p.model, p.q0, sim.load_steps, options, recorder, stats=stats)
     if p.scene.integrator == "rk45":
         from rodnet.integrate.rk45 import integrate_rk45
 
-        return integrate_rk45(p.model, p.q0, p.v0, p.times, sim.rtol, recorder, bar)
+        return integrate_rk45(p.model, p.q0, p.v0, p.times, sim.rtol, recorder, bar, stats=stats)
     if p.scene.integrator == "explicit":
         from rodnet.integrate.explicit import integrate_explicit
 
-        return integrate_explicit(p.model, p.q0, p.v0, p.times, p.dt, recorder, bar)
+        return integrate_explicit(p.model, p.q0, p.v0, p.times, p.dt, recorder, bar, stats=stats)
     stepper = Stepper(p.model, p.scene.integrator, sim.rho_inf, options)
     return integrate_implicit(stepper, p.q0, p.v0, p.times, p.dt, sim.adaptive, recorder, bar,
-                              dt_max=sim.dt_max)
+                              dt_max=sim.dt_max, stats=stats)
 
 
 def _summary(p: Prepared, arrays: dict[str, NDArray[Any]], stats: StepStats, status: str,

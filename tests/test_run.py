@@ -118,3 +118,10 @@ def test_demo_style_figures(tmp_path: Path) -> None:
     for name in ("net.png", "deployment.png"):
         png = (tmp_path / "o" / name).read_bytes()
         assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
+
+
+def test_failed_run_keeps_its_step_counts(tmp_path: Path, monkeypatch) -> None:
+    real = LumpedModel.stable_step
+    monkeypatch.setattr(LumpedModel, "stable_step", lambda self: 20.0 * real(self))
+    r = run(scene_from_toml(small_net_toml(duration=1.0)), tmp_path, progress=False)
+    assert r.status == "failed" and r.summary["steps"] > 0

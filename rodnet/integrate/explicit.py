@@ -23,7 +23,8 @@ def explicit_step(model: LumpedModel, dt: float, adaptive: bool, safety: float) 
 
 def integrate_explicit(model: LumpedModel, x0: NDArray[np.float64], v0: NDArray[np.float64],
                        times: NDArray[np.float64], dt: float, on_frame: FrameSink,
-                       on_progress: ProgressSink | None = None) -> StepStats:
+                       on_progress: ProgressSink | None = None,
+                       stats: StepStats | None = None) -> StepStats:
     """Step from ``times[0]`` to ``times[-1]``, handing every frame time's state to ``on_frame``.
 
     Between two frames the step is ``dt`` shrunk so that a whole number of steps fits.
@@ -35,7 +36,7 @@ def integrate_explicit(model: LumpedModel, x0: NDArray[np.float64], v0: NDArray[
     """
     x, v = np.array(x0, dtype=float), np.array(v0, dtype=float)
     scratch = np.empty_like(x)
-    stats = StepStats()
+    stats = StepStats() if stats is None else stats  # filled in place: kept if the run fails
     on_frame(float(times[0]), x, v)
     k = model.kernel_arguments()
     args = (*k[:6], model.inv_mass, *k[6:])

@@ -218,7 +218,8 @@ def _times_tangent_operator(system: System, K: sp.csr_matrix, dq: FloatArray) ->
 def integrate_implicit(stepper: Stepper, q0: Any, v0: FloatArray, times: NDArray[np.float64],
                        dt: float, adaptive: bool, on_frame: FrameSink,
                        on_progress: ProgressSink | None = None, dt_max: float | None = None,
-                       min_dt: float = 1e-12) -> StepStats:
+                       min_dt: float = 1e-12,
+                       stats: StepStats | None = None) -> StepStats:
     """March from ``times[0]`` to ``times[-1]`` landing on every frame time.
 
     Adaptive: a step whose Newton solve fails is retried with half the step; after two steps
@@ -230,7 +231,7 @@ def integrate_implicit(stepper: Stepper, q0: Any, v0: FloatArray, times: NDArray
     SimulationFailed
         When a step fails at a fixed step size, or the step falls below ``min_dt``.
     """
-    stats = StepStats()
+    stats = StepStats() if stats is None else stats  # filled in place: kept if the run fails
     state = stepper.initial(q0, v0, float(times[0]))
     on_frame(float(times[0]), state.q, state.v)
     t, h, easy = float(times[0]), dt, 0
@@ -263,14 +264,16 @@ def integrate_implicit(stepper: Stepper, q0: Any, v0: FloatArray, times: NDArray
 
 
 def solve_static(system: System, q0: Any, load_steps: int, options: NewtonOptions,
-                 on_frame: FrameSink, max_halvings: int = 6) -> StepStats:
+                 on_frame: FrameSink, max_halvings: int = 6,
+                 stats: StepStats | None = None) -> StepStats:
     """Equilibrium ``g(q, 0, load) = 0`` under loads raised in ``load_steps`` equal increments.
 
     Each increment is solved by Newton from the previous equilibrium; a failed increment is
     split in two (up to ``max_halvings`` times). ``on_frame(load, q, v)`` receives the
     equilibrium at the end of every requested increment.
     """
-    stats, solver = StepStats(), LinearSolver()
+    stats = StepStats() if stats is None else stats  # filled in place: kept if the run fails
+    solver = LinearSolver()
     zero = np.zeros(system.n_dof)
     free = system.free
     q = q0

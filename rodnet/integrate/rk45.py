@@ -19,7 +19,8 @@ from rodnet.reference.lumped import LumpedModel
 def integrate_rk45(model: LumpedModel, x0: NDArray[np.float64], v0: NDArray[np.float64],
                    times: NDArray[np.float64], rtol: float, on_frame: FrameSink,
                    on_progress: ProgressSink | None = None,
-                   first_step: float | None = None) -> StepStats:
+                   first_step: float | None = None,
+                       stats: StepStats | None = None) -> StepStats:
     """Integrate with RK45 (relative tolerance ``rtol``; absolute tolerance ``rtol`` times 1 mm
     and 1 mm/s) and hand the interpolated state at every frame time to ``on_frame``.
 
@@ -29,7 +30,7 @@ def integrate_rk45(model: LumpedModel, x0: NDArray[np.float64], v0: NDArray[np.f
         When the solver fails or the state becomes non-finite; earlier frames are kept.
     """
     n = len(x0)
-    stats = StepStats()
+    stats = StepStats() if stats is None else stats  # filled in place: kept if the run fails
 
     def rhs(t: float, y: NDArray[np.float64]) -> NDArray[np.float64]:
         x, v = y[:3 * n].reshape(n, 3), y[3 * n:].reshape(n, 3)
