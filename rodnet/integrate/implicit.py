@@ -145,10 +145,7 @@ class Stepper:
         d_increment = h if self.scheme == "backward-euler" else h * h * beta * c
 
         def step_limit(du: FloatArray) -> float:
-            if len(reduced_rot) == 0:
-                return 1.0
-            largest = d_increment * np.max(np.abs(du[reduced_rot]))
-            return 1.0 if largest <= self.options.max_rotation else self.options.max_rotation / largest
+            return _rotation_cap(d_increment * du[reduced_rot], self.options.max_rotation)
 
         def start(vd_guess: FloatArray) -> FloatArray:
             return (state.v + h * vd_guess)[free] if self.scheme == "backward-euler" else vd_guess[free]
@@ -175,6 +172,13 @@ class Stepper:
             if result.converged:
                 break
         return unpack(result.u)[0], result
+
+
+def _rotation_cap(rotation: FloatArray, max_rotation: float) -> float:
+    """The fraction of an update whose rotation increments are ``rotation`` that keeps every
+    component within ``max_rotation`` [rad] (1 when none exceeds it)."""
+    largest = float(np.max(np.abs(rotation), initial=0.0))
+    return 1.0 if largest <= max_rotation else max_rotation / largest
 
 
 def _combine(diagonal: FloatArray, a: float, C: sp.csr_matrix, b: float,
@@ -328,8 +332,7 @@ def _static_increment(system: System, q_start: Any, load: float, options: Newton
     rot = np.flatnonzero(np.isin(np.flatnonzero(free), system.rotation_dofs()))
 
     def step_limit(du: FloatArray) -> float:
-        largest = float(np.max(np.abs(du[rot]), initial=0.0))
-        return 1.0 if largest <= options.max_rotation else options.max_rotation / largest
+        return _rotation_cap(du[rot], options.max_rotation)
 
     try:
         result = newton(evaluate, np.zeros(int(free.sum())), scale, solver, options, step_limit,

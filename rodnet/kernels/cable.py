@@ -46,7 +46,7 @@ def cable_tangents(x_a: FloatArray, x_b: FloatArray, v_a: FloatArray, v_b: Float
     rate = np.einsum("ij,ij->i", dv, t) / rest_length
     n = axial_force(strain, rate, EA, etaA, kink_strain, tension_only)
     if tension_only:
-        r, slope = ramp(strain, kink_strain)
+        _, slope = ramp(strain, kink_strain)
         curvature = np.where((strain > 0) & (strain < kink_strain), 1.0 / max(kink_strain, 1e-300), 0.0)
         active = n > 0.0
     else:

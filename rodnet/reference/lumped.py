@@ -93,11 +93,15 @@ class LumpedModel:
         np.add.at(f, self.load_nodes, scale[:, None] * self.load_force)
         return f
 
-    def force(self, x: FloatArray, v: FloatArray, t: float) -> FloatArray:
-        """Total force on every node [N], (N, 3): segment forces (S7) plus external forces."""
+    def segment_force(self, x: FloatArray, v: FloatArray) -> FloatArray:
+        """Force the segments exert on every node [N], (N, 3), (S7)."""
         _, direction, e, rate = self.segment_kinematics(x, v)
         n = axial_force(e, rate, self.EA, self.etaA, self.kink_strain, self.tension_only)
-        return self._incidence @ (n[:, None] * direction) + self.external_force(t)
+        return self._incidence @ (n[:, None] * direction)
+
+    def force(self, x: FloatArray, v: FloatArray, t: float) -> FloatArray:
+        """Total force on every node [N], (N, 3): segment forces (S7) plus external forces."""
+        return self.segment_force(x, v) + self.external_force(t)
 
     def acceleration(self, x: FloatArray, v: FloatArray, t: float) -> FloatArray:
         """Nodal acceleration [m/s^2], (N, 3); zero at supported nodes.
@@ -164,10 +168,8 @@ class LumpedModel:
 
     def generalized_force(self, x: FloatArray, v: FloatArray, t: float, load_factor: float = 1.0) -> FloatArray:
         """g = f_int - f_ext (n_dof,) for flat velocities ``v`` (n_dof,)."""
-        vv = v.reshape(-1, 3)
-        _, direction, e, rate = self.segment_kinematics(x, vv)
-        n = axial_force(e, rate, self.EA, self.etaA, self.kink_strain, self.tension_only)
-        return -(self._incidence @ (n[:, None] * direction) + load_factor * self.external_force(t)).ravel()
+        f = self.segment_force(x, v.reshape(-1, 3)) + load_factor * self.external_force(t)
+        return -f.ravel()
 
     def tangents(self, x: FloatArray, v: FloatArray, t: float, load_factor: float = 1.0):
         """g (n_dof,) and K = dg/dx, C = dg/dv on the free DOFs (cable tangents, no load stiffness)."""
