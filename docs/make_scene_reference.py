@@ -47,7 +47,9 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
     "simulation.integrator": (
         "", 'Not set: "explicit" for `model.type = "lumped"`, "generalized-alpha" otherwise. '
         '"generalized-alpha": implicit, second order, numerical dissipation set by `rho_inf`. '
-        '"backward-euler": implicit, first order, strongly dissipative. "explicit": symplectic '
+        '"backward-euler": implicit, first order, strongly dissipative. "midpoint": implicit, '
+        "second order, conserves linear and angular momentum, no numerical dissipation. "
+        '"explicit": symplectic '
         'Euler, compiled. "rk45": scipy\'s adaptive Dormand-Prince, the reference. "explicit" and '
         '"rk45" run the lumped model and cable threads (`model.type = "cosserat"` with `bending` '
         "and `torsion` both false) only; rods with bending or torsion need an implicit integrator. "

@@ -49,7 +49,7 @@ class SimulationSpec:
     duration: float = 3.0
     dt: float = 1.0e-3
     adaptive: bool = True
-    integrator: Literal["generalized-alpha", "backward-euler", "explicit", "rk45"] | None = None
+    integrator: Literal["generalized-alpha", "backward-euler", "midpoint", "explicit", "rk45"] | None = None
     rho_inf: float = 0.7
     gravity: Vec3 = (0.0, 0.0, 0.0)
     load_steps: int = 10

@@ -29,7 +29,7 @@ from rodnet.integrate.newton import NewtonOptions
 from rodnet.reference.lumped import build_lumped
 from rodnet.topology import Structure, build_structure
 
-IMPLICIT = ("generalized-alpha", "backward-euler")
+IMPLICIT = ("generalized-alpha", "backward-euler", "midpoint")
 LUMPED_ONLY = ("explicit", "rk45")
 
 

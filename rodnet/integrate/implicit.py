@@ -1,8 +1,8 @@
 """Implicit integrators on a :class:`~rodnet.integrate.system.System`: Lie-group generalized-alpha,
-backward Euler, and the static solver with load stepping.
+backward Euler, the momentum-conserving midpoint scheme, and the static solver with load stepping.
 
 Generalized-alpha follows Arnold & Brüls (2007) in the Chung-Hulbert parametrisation
-(``elements/cosserat/FORMULATION.md``, time integration): with ``vd`` the true acceleration
+(``elements/cosserat/FORMULATION.md``, section 9, C39): with ``vd`` the true acceleration
 dv/dt and ``a`` the algorithmic one,
 
     (1 - alpha_m) a1 + alpha_m a0 = (1 - alpha_f) vd1 + alpha_f vd0
@@ -27,6 +27,7 @@ from rodnet.errors import SimulationFailed
 from rodnet.integrate.frames import FrameSink, ProgressSink, StepStats
 from rodnet.integrate.newton import LinearSolver, NewtonOptions, NewtonResult, newton
 from rodnet.integrate.system import System
+from rodnet.kernels import so3
 
 FloatArray = NDArray[np.float64]
 
@@ -60,7 +61,7 @@ class Stepper:
     """One implicit scheme on one system, with its Newton settings and linear solver."""
 
     system: System
-    scheme: str                     # "generalized-alpha" | "backward-euler"
+    scheme: str                     # "generalized-alpha" | "backward-euler" | "midpoint"
     rho_inf: float = 0.7
     options: NewtonOptions = field(default_factory=NewtonOptions)
     solver: LinearSolver = field(default_factory=LinearSolver)
@@ -99,6 +100,8 @@ class Stepper:
                 new, result = euler.step(state, t, h)
             self.started = result.converged
             return new, result
+        if self.scheme == "midpoint":
+            return self._step_midpoint(state, t, h)
         return self._step(state, t, h)
 
     def _step(self, state: MotionState, t: float, h: float) -> tuple[MotionState, NewtonResult]:
@@ -169,6 +172,95 @@ class Stepper:
         for guess in guesses:
             result = newton(evaluate, start(guess), scale, self.solver, self.options, step_limit,
                             active_set, increment_small=increment_small)
+            if result.converged:
+                break
+        return unpack(result.u)[0], result
+
+    def _step_midpoint(self, state: MotionState, t: float,
+                       h: float) -> tuple[MotionState, NewtonResult]:
+        """One step of the momentum-conserving midpoint scheme (FORMULATION.md, C39-C43).
+
+        Unknown: the velocities v1 at the end of the step. With ``dq = h (v0 + v1) / 2`` the
+        configuration moves to ``q1 = q0 o exp(dq)``, and the forces are evaluated once, at the
+        midpoint ``q_mid = q0 o exp(dq / 2)`` with velocities ``(v0 + v1) / 2``:
+
+            m (v1 - v0) / h + f(q_mid, v_mid, t + h/2) = 0                  (translations)
+            [exp(th/2) J W1 - exp(-th/2) J W0] / h + m(q_mid, v_mid) = 0     (rotations)
+
+        ``th`` the rotation increment of a node (the same vector in the start and end body
+        frames), ``m`` its body-frame moments without the gyroscopic term. Multiplied by the
+        midpoint rotation, the second line is the change of the spatial angular momentum
+        ``R J W``; as the internal forces of an objective model at one configuration exert no
+        net force or moment, total linear and angular momentum are conserved to Newton's
+        tolerance (energy is not: the scheme is second-order and symmetric but not dissipative).
+        """
+        s, free = self.system, self.system.free
+        M = s.dof_mass[free]
+        n = s.n_dof
+        rot = s.rotation_dofs().reshape(-1, 3)
+        J = s.dof_mass[rot]
+        inertia_rows = M / h
+        cache: dict[str, Any] = {}
+
+        def unpack(u: FloatArray) -> tuple[MotionState, Any, FloatArray, FloatArray]:
+            """End state, midpoint configuration, midpoint velocities and increment for ``u``."""
+            if cache.get("u") is not None and np.array_equal(cache["u"], u):
+                return cache["end"], cache["q_mid"], cache["v_mid"], cache["dq"]
+            v1 = np.zeros(n)
+            v1[free] = u
+            v_mid = 0.5 * (state.v + v1)
+            dq = h * v_mid
+            vd = (v1 - state.v) / h
+            end = MotionState(s.retract(state.q, dq), v1, vd, vd, state.vd)
+            q_mid = s.retract(state.q, 0.5 * dq)
+            cache.update(u=u.copy(), end=end, q_mid=q_mid, v_mid=v_mid, dq=dq)
+            return end, q_mid, v_mid, dq
+
+        def momentum_rate(end: MotionState, v_mid: FloatArray, dq: FloatArray) -> FloatArray:
+            """The inertial term (n_dof,): m dv/h on translations, the midpoint-frame change of
+            J W on rotations, minus the gyroscopic term the model adds to its forces."""
+            rate = s.dof_mass * (end.v - state.v) / h
+            if len(rot):
+                half = so3.so3_exp(0.5 * dq[rot])
+                W0, W1, Wm = state.v[rot], end.v[rot], v_mid[rot]
+                rate[rot] = (np.einsum("rij,rj->ri", half, J * W1)
+                             - np.einsum("rji,rj->ri", half, J * W0)) / h - np.cross(Wm, J * Wm)
+            return rate
+
+        def evaluate(u: FloatArray, need_matrix: bool) -> tuple[FloatArray, sp.csr_matrix | None]:
+            end, q_mid, v_mid, dq = unpack(u)
+            rate = momentum_rate(end, v_mid, dq)
+            if not need_matrix:
+                return (rate + s.generalized_force(q_mid, v_mid, t + 0.5 * h))[free], None
+            g, K, C = s.tangents(q_mid, v_mid, t + 0.5 * h)
+            # d(mid)/d(v1) = 1/2 for velocities, h/4 T(dq/2) for the configuration; the
+            # gyroscopic derivative in C stands in for that of the rotated momenta (equal to O(h))
+            S = _combine(inertia_rows, 0.5, C, 0.25 * h, _times_tangent_operator(s, K, 0.5 * dq))
+            return (rate + g)[free], S
+
+        reduced_rot, free_trans = self._layout()
+        d_increment = 0.5 * h
+        length = s.length_scale
+
+        def step_limit(du: FloatArray) -> float:
+            return _rotation_cap(d_increment * du[reduced_rot], self.options.max_rotation)
+
+        def increment_small(du: FloatArray) -> bool:
+            move = d_increment * np.abs(du)
+            return bool(np.max(move[free_trans], initial=0.0) <= self.options.xtol * length
+                        and np.max(move[~free_trans], initial=0.0) <= self.options.xtol)
+
+        def active_set(u: FloatArray) -> int:
+            end, _, _, _ = unpack(u)
+            return s.active_set(end.q, end.v)
+
+        scale = max(float(np.max(np.abs(M * state.vd[free]), initial=0.0)), 1e-2 * s.force_scale)
+        guesses = [state.vd] if state.vd_previous is None else \
+            [2.0 * state.vd - state.vd_previous, state.vd]
+        guesses.append(np.zeros(n))
+        for guess in guesses:
+            result = newton(evaluate, (state.v + h * guess)[free], scale, self.solver, self.options,
+                            step_limit, active_set, increment_small=increment_small)
             if result.converged:
                 break
         return unpack(result.u)[0], result

@@ -229,6 +229,7 @@ def _order_study(tmp_path: Path, dt_ref: float, alpha_dts: list[float],
     reference = _heavy_l("generalized-alpha", dt_ref, tmp_path / "reference")
     assert np.ptp(reference[0][:, 1]) > 0.1 and reference[0][-1, 2] < -0.3  # it does tumble in 3-D
     for integrator, dts, order in (("generalized-alpha", alpha_dts, 2.0),
+                                   ("midpoint", alpha_dts, 2.0),
                                    ("backward-euler", euler_dts, 1.0)):
         pos, ang = _trajectory_errors(lambda dt: _heavy_l(integrator, dt, tmp_path / f"{dt:g}"),
                                       dts, reference)
@@ -240,7 +241,7 @@ def _order_study(tmp_path: Path, dt_ref: float, alpha_dts: list[float],
 
 
 def test_time_order_generalized_alpha_2_and_backward_euler_1(tmp_path: Path) -> None:
-    # measured: generalized-alpha 2.00 (positions), backward Euler 0.96
+    # measured: generalized-alpha 2.00 (positions), midpoint 2.00, backward Euler 0.96
     _order_study(tmp_path, 2.5e-4, [2e-2, 1e-2, 5e-3, 2.5e-3], [5e-3, 2.5e-3, 1.25e-3])
 
 
@@ -255,7 +256,7 @@ def test_time_order_with_finer_steps(tmp_path: Path) -> None:
 FREE_ROD = """
 [simulation]
 type = "dynamic"
-integrator = "generalized-alpha"
+integrator = "{integrator}"
 rho_inf = {rho_inf}
 dt = {dt}
 adaptive = false
@@ -295,11 +296,13 @@ vtk = false
 """
 
 
-def _free_flight(dt: float, steps: int, rho_inf: float = 1.0, frame_every: int = 10):
+def _free_flight(dt: float, steps: int, rho_inf: float = 1.0, frame_every: int = 10,
+                 integrator: str = "generalized-alpha"):
     """March the free rod (no supports, loads or gravity) as ``run`` does; returns the model and
     ``(t, q, v)`` of every frame. The rod spins, flexes and drifts: the end masses start with
     opposite transverse velocities on top of a common drift."""
-    scene = scene_from_toml(FREE_ROD.format(rho_inf=rho_inf, dt=dt, duration=dt * steps,
+    scene = scene_from_toml(FREE_ROD.format(integrator=integrator, rho_inf=rho_inf, dt=dt,
+                                            duration=dt * steps,
                                             frame_interval=dt * frame_every))
     prepared = prepare(scene)
     options = NewtonOptions(rtol=min(scene.simulation.rtol, 1e-6) * 1e-2)  # as rodnet.run does
@@ -352,19 +355,19 @@ def _internal_torque(model, q, v) -> tuple[float, float]:
     return float(np.linalg.norm(torque)), scale
 
 
-def test_free_flight_conserves_momentum_and_bounds_energy() -> None:
+def test_generalized_alpha_free_flight_momentum_and_energy() -> None:
     """No supports, loads, gravity or damping; rho_inf = 1; 2000 steps of 1e-4 s.
 
     - Linear momentum: generalized-alpha enforces M dv/dt = -g at every step and the internal
       forces sum to zero, so it is conserved to round-off (1e-9 asserted; measured 3e-15).
     - Angular momentum: the model's internal forces exert no net torque in any state (1e-12
-      asserted; measured 4e-17), so the rod conserves it exactly. The scheme does not: its
-      Newmark-type update conserves no quadratic invariant, so sum x cross v + R J W drifts by
-      O(dt^2), bounded: measured 8.5e-6 at dt 1e-4 s and 3.2e-5 at 2e-4 s over the first 0.1 s.
-      It cannot meet 1e-9; this is a property of generalized-alpha, not of the rod.
+      asserted; measured 4e-17), so the rod conserves it exactly. Generalized-alpha does not:
+      its Newmark-type update conserves no quadratic invariant, so sum x cross v + R J W drifts
+      by O(dt^2): measured 8.5e-6 at dt 1e-4 s and 3.2e-5 at 2e-4 s over the first 0.1 s. The
+      midpoint scheme conserves it (``test_midpoint_free_flight_conserves_momentum``).
     - Energy: bounded, oscillating about its start value with no upward trend (measured in
       [-1.4e-4, +1.5e-4], drift -7e-6; over 10^4 steps in [-1.4e-4, +1.4e-4], drift +6e-6:
-      ``test_free_flight_energy_over_ten_thousand_steps``).
+      ``test_generalized_alpha_energy_over_ten_thousand_steps``).
     """
     model, frames = _free_flight(1e-4, 2000)
     dp, dl, de = _invariant_errors(model, frames)
@@ -386,16 +389,38 @@ def test_free_flight_conserves_momentum_and_bounds_energy() -> None:
     assert drift < 2e-5
 
 
-@pytest.mark.slow
-def test_free_flight_energy_over_ten_thousand_steps() -> None:
-    """The same free rod over 10^4 steps: energy bounded, no upward drift. About 45 s, which
-    would take the default suite past its budget, hence slow; the 2000-step version runs there."""
-    model, frames = _free_flight(1e-4, 10_000, frame_every=20)
+def _ten_thousand_steps(integrator: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """Invariant errors of the free rod over 10^4 steps of 1e-4 s, and the energy drift (mean of
+    the last fifth of the frames minus that of the first fifth)."""
+    model, frames = _free_flight(1e-4, 10_000, frame_every=20, integrator=integrator)
     dp, dl, de = _invariant_errors(model, frames)
     fifth = len(de) // 5
     drift = float(de[-fifth:].mean() - de[:fifth].mean())
-    print(f"\nfree flight, 10^4 steps: linear momentum {dp.max():.2e}, angular momentum "
-          f"{dl.max():.2e}, energy in [{de.min():+.2e}, {de.max():+.2e}], drift {drift:+.2e}")
+    print(f"\n{integrator} free flight, 10^4 steps: linear momentum {dp.max():.2e}, angular "
+          f"momentum {dl.max():.2e}, energy in [{de.min():+.2e}, {de.max():+.2e}], drift {drift:+.2e}")
+    return dp, dl, de, drift
+
+
+def test_midpoint_free_flight_conserves_momentum() -> None:
+    """The midpoint scheme on the same free rod, 10^4 steps of 1e-4 s (1 s of spinning,
+    flexing motion). Its forces act at one configuration, the step midpoint, where
+    the objective element exerts no net force or moment, and its rotational update is the exact
+    change of the spatial angular momentum R J W; so linear and angular momentum are conserved
+    to Newton's tolerance: 1e-9 asserted, measured 2.7e-15 and 1.8e-13. Energy is not a discrete
+    invariant of the scheme but stays bounded with no trend: measured in [-7.0e-5, +7.1e-5],
+    drift -2.9e-6 (first against last fifth of the run)."""
+    dp, dl, de, drift = _ten_thousand_steps("midpoint")
+    assert dp.max() < 1e-9
+    assert dl.max() < 1e-9
+    assert np.abs(de).max() < 1e-3
+    assert abs(drift) < 2e-5
+
+
+@pytest.mark.slow
+def test_generalized_alpha_energy_over_ten_thousand_steps() -> None:
+    """The same free rod over 10^4 steps with generalized-alpha: energy bounded, no upward
+    drift. About 45 s, hence slow; the 2000-step version runs in the default suite."""
+    dp, dl, de, drift = _ten_thousand_steps("generalized-alpha")
     assert dp.max() < 1e-9
     assert dl.max() < 1e-4
     assert np.abs(de).max() < 1e-3
