@@ -10,17 +10,16 @@ position but not a rotation (pinned knots) fit the same layout. Element physics:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from rodnet.assembly import SparsityPattern, assemble_vector
+from rodnet.assembly import IterationMatrix, SparsityPattern, assemble_vector
 from rodnet.kernels import so3, so3_compiled
-from rodnet.kernels.cosserat import (internal_force, internal_force_and_tangents, strain_energy,
-                                     stress_resultants)
-from rodnet.kernels.cosserat_strain import (kinematics, reduce_velocity, strain_rates_from_kinematics,
-                                            strains_from_kinematics)
+from rodnet.kernels.cosserat import (internal_force, internal_force_and_tangents, section_state,
+                                     strain_energy)
 
 FloatArray = NDArray[np.float64]
 
@@ -81,21 +80,28 @@ class CosseratModel:
     end_offset: FloatArray | None = None
     size: float = 1.0
 
-    @property
+    # sizes are read many times per Newton iteration: computed once (the arrays never change)
+    @cached_property
     def n_nodes(self) -> int:
         return len(self.node_mass)
 
-    @property
+    @cached_property
     def n_rot(self) -> int:
         return len(self.rotary_inertia)
 
-    @property
+    @cached_property
     def n_dof(self) -> int:
         return 3 * (self.n_nodes + self.n_rot)
 
     @property
     def dof_mass(self) -> FloatArray:
-        return np.concatenate([np.repeat(self.node_mass, 3), self.rotary_inertia.ravel()])
+        """(n_dof,) diagonal of the mass matrix [kg, kg m^2] (read-only)."""
+        cached = self.__dict__.get("_dof_mass_cache")
+        if cached is None:
+            cached = np.concatenate([np.repeat(self.node_mass, 3), self.rotary_inertia.ravel()])
+            cached.setflags(write=False)
+            object.__setattr__(self, "_dof_mass_cache", cached)
+        return cached
 
     @property
     def length_scale(self) -> float:
@@ -104,7 +110,12 @@ class CosseratModel:
 
     @property
     def force_scale(self) -> float:
-        return float(self.stiffness[:, 0].max())
+        """The largest axial stiffness EA [N]."""
+        cached = self.__dict__.get("_force_scale_cache")
+        if cached is None:
+            cached = float(self.stiffness[:, 0].max())
+            object.__setattr__(self, "_force_scale_cache", cached)
+        return cached
 
     @property
     def element_dofs(self) -> NDArray[np.int64]:
@@ -151,11 +162,21 @@ class CosseratModel:
         ramp = self.load_ramp
         return np.where(ramp > 0.0, np.minimum(1.0, t / np.where(ramp > 0.0, ramp, 1.0)), 1.0)
 
+    @property
+    def _weight(self) -> FloatArray:
+        """(n_dof,) gravity on the lumped node masses [N] (zero on the rotations)."""
+        cached = self.__dict__.get("_weight_cache")
+        if cached is None:
+            cached = np.zeros(self.n_dof)
+            cached[:3 * self.n_nodes] = (self.node_mass[:, None] * self.gravity).ravel()
+            cached.setflags(write=False)
+            object.__setattr__(self, "_weight_cache", cached)
+        return cached
+
     def _external(self, q: RodConfiguration, t: float, load_factor: float) -> tuple[FloatArray, FloatArray]:
         """External force vector (n_dof,) and the body-frame load moments (L, 3)."""
-        f = np.zeros(self.n_dof)
-        if self.gravity.any():  # raised with the loads in a static run, like the lumped model
-            f[:3 * self.n_nodes] = load_factor * (self.node_mass[:, None] * self.gravity).ravel()
+        # gravity is raised with the loads in a static run, like the lumped model
+        f = load_factor * self._weight
         if len(self.load_nodes) == 0:
             return f, np.zeros((0, 3))
         s = load_factor * self._load_scale(t)
@@ -179,13 +200,45 @@ class CosseratModel:
 
     def generalized_force(self, q: RodConfiguration, v: FloatArray, t: float,
                           load_factor: float = 1.0) -> FloatArray:
-        g, _, _ = self._assemble(q, v, t, load_factor, need_matrices=False)
+        g, _, _ = self._forces(q, v, t, load_factor, need_matrices=False)
         return g
 
-    def tangents(self, q: RodConfiguration, v: FloatArray, t: float, load_factor: float = 1.0):
-        return self._assemble(q, v, t, load_factor, need_matrices=True)
+    def tangents(self, q: RodConfiguration, v: FloatArray, t: float, load_factor: float = 1.0,
+                 ) -> tuple[FloatArray, sp.csr_matrix, sp.csr_matrix]:
+        g, K_blocks, C_blocks = self._forces(q, v, t, load_factor, need_matrices=True)
+        return g, self._pattern.matrix(K_blocks), self._pattern.matrix(C_blocks)
 
-    def _assemble(self, q, v, t, load_factor, need_matrices):  # type: ignore[no-untyped-def]
+    def iteration_matrix(self, q: RodConfiguration, v: FloatArray, t: float, dq: FloatArray,
+                         diagonal: FloatArray, a: float, b: float, load_factor: float = 1.0,
+                         ) -> tuple[FloatArray, IterationMatrix]:
+        """``g`` (n_dof,) and Newton's iteration matrix ``diag(diagonal) + a C + b K T(dq)`` on the
+        free DOFs, assembled in one pass.
+
+        ``K``, ``C`` are those of :meth:`tangents` and ``T(dq)`` is the tangent operator as
+        :meth:`times_tangent_operator` applies it (at every angle here). The matrix comes in the
+        storage its LU will use: LAPACK band storage for a thread, dense or CSR otherwise
+        (:meth:`rodnet.assembly.SparsityPattern.iteration_matrix`).
+
+        Parameters
+        ----------
+        q, v, t, load_factor
+            As :meth:`tangents`.
+        dq : (n_dof,) float
+            The increment whose tangent operator multiplies K.
+        diagonal : (n_free,) float
+            Added to the diagonal (the mass term).
+        a, b : float
+            Weights of C and of K T.
+        """
+        g, K_blocks, C_blocks = self._forces(q, v, t, load_factor, need_matrices=True)
+        S = self._pattern.iteration_matrix(diagonal, a, C_blocks, b, K_blocks,
+                                           self._triple_transforms(dq))
+        return g, S
+
+    def _forces(self, q: RodConfiguration, v: FloatArray, t: float, load_factor: float,
+                need_matrices: bool) -> tuple[FloatArray, list[FloatArray], list[FloatArray]]:
+        """``g`` (n_dof,) and, when ``need_matrices``, the blocks of K and of C in the order of
+        the pattern's groups: ``[element (E, 12, 12), rotation node (R, 3, 3)]`` (else empty)."""
         x, quat, ve = self._element_state(q, v)
         args = (self.rest_length, self.reference_strain, self.stiffness, self.tau, x, quat, ve,
                 self.tension_only, self.kink_strain)
@@ -205,12 +258,11 @@ class CosseratModel:
         f_ext, body_moment = self._external(q, t, load_factor)
         g -= f_ext
         if not need_matrices:
-            return g, None, None
+            return g, [], []
         load_block = np.zeros((self.n_rot, 3, 3))
-        np.add.at(load_block, self._load_rot, -so3.hat(body_moment))
-        K = self._pattern.matrix([K_el, load_block])
-        C = self._pattern.matrix([C_el, d_gyro])
-        return g, K, C
+        if len(body_moment):
+            np.add.at(load_block, self._load_rot, -so3.hat(body_moment))
+        return g, [K_el, load_block], [C_el, d_gyro]
 
     def retract(self, q: RodConfiguration, dq: FloatArray) -> RodConfiguration:
         n3 = 3 * self.n_nodes
@@ -234,11 +286,31 @@ class CosseratModel:
         rot = dq[3 * self.n_nodes:].reshape(-1, 3)[self._free_rot_nodes]
         if not len(rot) or np.abs(rot).max() < 1e-4:
             return K
-        return self._pattern.right_multiply_blocks(K, self._free_rot_triples, so3.dexp(rot))
+        return self._pattern.right_multiply_blocks(K, self._free_rot_triples, so3_compiled.dexp(rot))
+
+    def _triple_transforms(self, dq: FloatArray) -> FloatArray:
+        """(n_dof / 3, 3, 3) blocks of the tangent operator ``T(dq)`` per DOF triple: ``dexp`` of
+        the increment on rotation nodes whose three rotations are free (as in
+        :meth:`times_tangent_operator`), the identity elsewhere."""
+        identity = self.__dict__.get("_identity_cache")
+        if identity is None:
+            identity = np.tile(np.eye(3), (self.n_dof // 3, 1, 1))
+            identity.setflags(write=False)
+            object.__setattr__(self, "_identity_cache", identity)
+        transforms = identity.copy()
+        nodes = self._free_rot_nodes
+        transforms[self.n_nodes + nodes] = so3_compiled.dexp(
+            dq[3 * self.n_nodes:].reshape(-1, 3)[nodes])
+        return transforms
 
     @property
     def _free_rot_nodes(self) -> NDArray[np.int64]:
-        return np.flatnonzero(self.free[3 * self.n_nodes:].reshape(-1, 3).all(axis=1))
+        """Rotation nodes whose three rotations are all free, (F,)."""
+        cached = self.__dict__.get("_free_rot_nodes_cache")
+        if cached is None:
+            cached = np.flatnonzero(self.free[3 * self.n_nodes:].reshape(-1, 3).all(axis=1))
+            object.__setattr__(self, "_free_rot_nodes_cache", cached)
+        return cached
 
     @property
     def _free_rot_triples(self) -> NDArray[np.int64]:
@@ -257,11 +329,8 @@ class CosseratModel:
     def section_state(self, q: RodConfiguration, v: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Strains ``[Gamma, K]`` (E, 6) and stress resultants ``[N, M]`` (E, 6) incl. damping."""
         x, quat, ve = self._element_state(q, v)
-        psi, R_m, gap = kinematics(x, quat)
-        eps = strains_from_kinematics(psi, gap, self.rest_length, self.reference_strain)
-        rate = strain_rates_from_kinematics(psi, R_m, gap, reduce_velocity(ve), self.rest_length)
-        return eps, stress_resultants(self.stiffness, self.tau, eps, rate, self.tension_only,
-                                      self.kink_strain)
+        return section_state(self.rest_length, self.reference_strain, self.stiffness, self.tau,
+                             x, quat, ve, self.tension_only, self.kink_strain)
 
     def frame_arrays(self, q: RodConfiguration, v: FloatArray) -> dict[str, FloatArray]:
         """What a saved frame holds: positions, velocities, rotations, and per element the axial
@@ -286,8 +355,9 @@ class CosseratModel:
         """Axial force N [N] of every element (the ``tension`` output), (E,)."""
         return self.section_state(q, v)[1][:, 0]
 
-    def energy(self, q: RodConfiguration, v: FloatArray) -> dict[str, float]:
-        """Kinetic (translational + rotational) and elastic energy [J]."""
+    def energy(self, q: RodConfiguration, v: FloatArray, t: float = 0.0) -> dict[str, float]:
+        """Kinetic (translational + rotational) and elastic energy [J]; ``t`` is unused (the
+        signature is that of the lumped model's)."""
         x, quat, _ = self._element_state(q, v)
         elastic = strain_energy(self.rest_length, self.reference_strain, self.stiffness, x, quat,
                                 self.tension_only, self.kink_strain)

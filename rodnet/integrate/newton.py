@@ -1,4 +1,5 @@
-"""Newton's method with a sparse LU, factorisation reuse and a backtracking line search.
+"""Newton's method with an LU (band, dense or sparse), factorisation reuse and a backtracking
+line search.
 
 The unknown is a plain vector ``u`` on the free DOFs; the caller's ``evaluate(u)`` returns the
 residual (and, on request, the iteration matrix). Reuse: the LU of an earlier iteration (or step)
@@ -8,14 +9,16 @@ is kept while residuals contract by at least ``reuse_contraction`` and the model
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any, Callable
 
 import numpy as np
-import scipy.linalg
-import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
+from scipy.linalg.lapack import dgbtrf as _gbtrf, dgbtrs as _gbtrs, dgetrf as _getrf, dgetrs as _getrs
+
+from rodnet.assembly import DENSE_LIMIT, BandedMatrix, IterationMatrix
 
 FloatArray = NDArray[np.float64]
 
@@ -46,28 +49,43 @@ class NewtonResult:
 
 
 class LinearSolver:
-    """LU of the iteration matrix, kept between calls until refreshed: dense LAPACK below
-    ``dense_limit`` unknowns (a single thread of a few dozen elements: there SuperLU's set-up
-    costs more than the factorisation), sparse SuperLU above."""
+    """LU of the iteration matrix, kept between calls until refreshed.
 
-    dense_limit = 400
+    A CSR matrix is factorised by dense LAPACK below ``dense_limit`` unknowns (a single thread of
+    a few dozen elements: there SuperLU's set-up costs more than the factorisation) and by sparse
+    SuperLU above. A model may instead hand over its matrix already in LAPACK's band storage
+    (:class:`~rodnet.assembly.BandedMatrix`) or as a dense array, which are factorised as given.
+    """
+
+    dense_limit = DENSE_LIMIT
 
     def __init__(self) -> None:
         self.lu: Any = None
         self.factorizations = 0
 
-    def factorize(self, matrix: sp.csr_matrix) -> None:
-        """Factorise; the symmetric ordering with diagonal pivots suits the (nearly symmetric,
-        pattern-symmetric) tangents, partial pivoting is the fall-back."""
+    def factorize(self, matrix: IterationMatrix) -> None:
+        """Factorise. A band matrix is factorised in place (its storage is overwritten), a dense
+        one on a copy. For SuperLU the symmetric ordering with diagonal pivots suits the (nearly
+        symmetric, pattern-symmetric) tangents, partial pivoting is the fall-back.
+
+        Raises
+        ------
+        FloatingPointError
+            When the matrix holds a NaN or an infinity.
+        RuntimeError
+            When the matrix is exactly singular.
+        """
         self.factorizations += 1
+        if isinstance(matrix, BandedMatrix):
+            self.lu = _BandLU(matrix)
+            return
+        if isinstance(matrix, np.ndarray):
+            self.lu = _DenseLU(matrix)
+            return
         if not np.isfinite(matrix.data).all():  # SuperLU can loop forever on NaN
             raise FloatingPointError("non-finite iteration matrix")
         if matrix.shape[0] <= self.dense_limit:
-            dense = matrix.toarray()
-            lu, piv = scipy.linalg.lu_factor(dense, check_finite=False)
-            if not np.all(np.isfinite(lu)) or np.min(np.abs(np.diag(lu)), initial=1.0) == 0.0:
-                raise RuntimeError("Factor is exactly singular")
-            self.lu = _DenseLU(lu, piv)
+            self.lu = _DenseLU(matrix.toarray())
             return
         csc = matrix.tocsc()
         try:
@@ -86,16 +104,39 @@ class LinearSolver:
 
 
 class _DenseLU:
-    """The ``solve`` of a dense LAPACK LU, like SuperLU's."""
+    """LAPACK's LU with partial pivoting of a dense (n, n) matrix, with SuperLU's ``solve``."""
 
-    def __init__(self, lu: FloatArray, piv: NDArray[np.int32]) -> None:
-        self.factors = (lu, piv)
+    def __init__(self, matrix: FloatArray) -> None:
+        if not np.isfinite(matrix).all():
+            raise FloatingPointError("non-finite iteration matrix")
+        lu, piv, info = _getrf(matrix)
+        if info > 0 or not np.isfinite(lu).all():
+            raise RuntimeError("Factor is exactly singular")
+        self.lu, self.piv = lu, piv
 
     def solve(self, rhs: FloatArray) -> FloatArray:
-        return scipy.linalg.lu_solve(self.factors, rhs, check_finite=False)
+        return _getrs(self.lu, self.piv, rhs)[0]
 
 
-def newton(evaluate: Callable[[FloatArray, bool], tuple[FloatArray, sp.csr_matrix | None]],
+class _BandLU:
+    """LAPACK's band LU with partial pivoting of a :class:`~rodnet.assembly.BandedMatrix`, with
+    SuperLU's ``solve``; the band storage is factorised in place."""
+
+    def __init__(self, matrix: BandedMatrix) -> None:
+        if not np.isfinite(matrix.ab).all():
+            raise FloatingPointError("non-finite iteration matrix")
+        self.lower, self.upper, self.order = matrix.lower, matrix.upper, matrix.order
+        self.lu, self.piv, info = _gbtrf(matrix.ab, self.lower, self.upper, overwrite_ab=1)
+        if info > 0:
+            raise RuntimeError("Factor is exactly singular")
+
+    def solve(self, rhs: FloatArray) -> FloatArray:
+        x = np.empty_like(rhs)
+        x[self.order] = _gbtrs(self.lu, self.lower, self.upper, rhs[self.order], self.piv)[0]
+        return x
+
+
+def newton(evaluate: Callable[[FloatArray, bool], tuple[FloatArray, IterationMatrix | None]],
            u0: FloatArray, scale: float, solver: LinearSolver, options: NewtonOptions,
            step_limit: Callable[[FloatArray], float] | None = None,
            active_set: Callable[[FloatArray], int] | None = None,
@@ -131,10 +172,12 @@ def newton(evaluate: Callable[[FloatArray, bool], tuple[FloatArray, sp.csr_matri
     tol = options.atol + options.rtol * scale
     fresh = not options.reuse_factorization or solver.lu is None
     r, S = evaluate(u, fresh)
-    norm = float(np.max(np.abs(r), initial=0.0))
-    fingerprint = active_set(u) if active_set is not None else 0
+    norm = _max_abs(r)
+    # the active set only decides whether a kept factorisation may be reused
+    track = options.reuse_factorization and active_set is not None
+    fingerprint = active_set(u) if track else 0
     for iteration in range(1, options.max_iterations + 1):
-        if not np.isfinite(norm):
+        if not math.isfinite(norm):
             return NewtonResult(u, False, iteration - 1, solver.factorizations - start_factorizations,
                                 norm, "non-finite residual")
         if norm <= tol:
@@ -158,7 +201,7 @@ def newton(evaluate: Callable[[FloatArray, bool], tuple[FloatArray, sp.csr_matri
             return NewtonResult(u + next_du, True, iteration,
                                 solver.factorizations - start_factorizations, norm_new)
         contraction = norm_new / norm if norm > 0 else 0.0
-        new_fingerprint = active_set(u) if active_set is not None else 0
+        new_fingerprint = active_set(u) if track else 0
         fresh = (not options.reuse_factorization or contraction > options.reuse_contraction
                  or new_fingerprint != fingerprint)
         fingerprint, r, norm, S = new_fingerprint, r_new, norm_new, None
@@ -175,16 +218,16 @@ def _line_search(evaluate, solver, u, du):  # type: ignore[no-untyped-def]
     ``(1 - alpha / 4) |du|``; halve ``alpha`` up to four times. Unlike a test on the residual
     norm it is invariant to the scaling of the equations, so a stiff axial residual after a
     large rotation does not stall the iteration."""
-    size = float(np.linalg.norm(du))
+    size = _length(du)
     best = None
     alpha = 1.0
     for _ in range(5):
         trial = u + alpha * du
         r, _ = evaluate(trial, False)
-        n = float(np.max(np.abs(r), initial=0.0))
-        if np.isfinite(n):
+        n = _max_abs(r)
+        if math.isfinite(n):
             correction = solver.solve(r)
-            size_next = float(np.linalg.norm(correction))
+            size_next = _length(correction)
             if size_next <= (1.0 - 0.25 * alpha) * size or size == 0.0:
                 return trial, r, n, -correction
             if best is None or size_next < best[3]:
@@ -193,3 +236,13 @@ def _line_search(evaluate, solver, u, du):  # type: ignore[no-untyped-def]
     if best is None:
         return u + du, np.full_like(u, np.nan), float("nan"), None
     return (*best[:3], None)
+
+
+def _max_abs(r: FloatArray) -> float:
+    """``max |r_i|`` (0 for an empty vector)."""
+    return float(np.abs(r).max()) if r.size else 0.0
+
+
+def _length(x: FloatArray) -> float:
+    """Euclidean norm of a vector."""
+    return math.sqrt(float(x @ x))

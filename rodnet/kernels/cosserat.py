@@ -15,8 +15,8 @@ Shapes: n = number of elements. Arguments come in the order model arrays, state 
 
 Element vectors are ordered ``[dx1, dtheta1, dx2, dtheta2]``, rotations as body-frame increments.
 
-:func:`internal_force`, :func:`internal_force_and_tangents`, :func:`strain_energy` and
-:func:`stress_resultants` run the compiled per-element loops of
+:func:`internal_force`, :func:`internal_force_and_tangents`, :func:`strain_energy`,
+:func:`stress_resultants` and :func:`section_state` run the compiled per-element loops of
 :mod:`rodnet.kernels.cosserat_compiled`; the ``*_numpy`` variants are the same equations in
 NumPy, kept as the reference for the compiled path.
 """
@@ -106,6 +106,35 @@ def stress_resultants_numpy(
     """:func:`stress_resultants` in NumPy."""
     return stress_resultants_and_moduli(stiffness, tau, strain, strain_rate, tension_only,
                                         kink_strain)[0]
+
+
+def section_state(
+    # Model:
+    rest_length: FloatArray, reference_strain: FloatArray, stiffness: FloatArray, tau: FloatArray,
+    # State in:
+    x: FloatArray, q: FloatArray, velocity: FloatArray,
+    # Scalars:
+    tension_only: bool, kink_strain: float,
+) -> tuple[FloatArray, FloatArray]:
+    """Strains ``[Gamma, K]`` (n, 6) and stress resultants ``[N, M]`` (n, 6) with Kelvin-Voigt
+    damping (§Strains, §Strain rates, §Constitutive law). Compiled."""
+    return cosserat_compiled.section_state(rest_length, reference_strain, stiffness, tau, x, q,
+                                           velocity, tension_only, kink_strain)
+
+
+def section_state_numpy(
+    # Model:
+    rest_length: FloatArray, reference_strain: FloatArray, stiffness: FloatArray, tau: FloatArray,
+    # State in:
+    x: FloatArray, q: FloatArray, velocity: FloatArray,
+    # Scalars:
+    tension_only: bool, kink_strain: float,
+) -> tuple[FloatArray, FloatArray]:
+    """:func:`section_state` in NumPy."""
+    psi, R_m, g = kinematics(x, q)
+    eps = strains_from_kinematics(psi, g, rest_length, reference_strain)
+    rate = strain_rates_from_kinematics(psi, R_m, g, reduce_velocity(velocity), rest_length)
+    return eps, stress_resultants_numpy(stiffness, tau, eps, rate, tension_only, kink_strain)
 
 
 def strain_energy(

@@ -47,11 +47,11 @@ def _check_shapes(got: tuple[tuple[int, ...], ...], expected: tuple[tuple[int, .
 
 def _element_arguments(*model_and_state: ArrayLike) -> tuple[FloatArray, ...]:
     """``rest_length, reference_strain, stiffness, tau, x, q, velocity``, converted and checked."""
-    arrays = tuple(_as_float(a) for a in model_and_state)
+    arrays = [np.ascontiguousarray(a, dtype=np.float64) for a in model_and_state]
     n = arrays[0].shape[0]
-    _check_shapes(tuple(a.shape for a in arrays),
+    _check_shapes(tuple([a.shape for a in arrays]),
                   ((n,), (n, 6), (n, 6), (n,), (n, 2, 3), (n, 2, 4), (n, 12)))
-    return arrays
+    return tuple(arrays)
 
 
 def internal_force(
@@ -119,6 +119,25 @@ def stress_resultants(
     n = arrays[0].shape[0]
     _check_shapes(tuple(a.shape for a in arrays), ((n, 6), (n,), (n, 6), (n, 6)))
     return _stress_resultants_kernel(*arrays, bool(tension_only), float(kink_strain))
+
+
+def section_state(
+    # Model:
+    rest_length: FloatArray, reference_strain: FloatArray, stiffness: FloatArray, tau: FloatArray,
+    # State in:
+    x: FloatArray, q: FloatArray, velocity: FloatArray,
+    # Scalars:
+    tension_only: bool, kink_strain: float,
+) -> tuple[FloatArray, FloatArray]:
+    """Strains ``[Gamma, K]`` (n, 6) and stress resultants ``[N, M]`` (n, 6) with Kelvin-Voigt
+    damping, as :func:`rodnet.kernels.cosserat_strain.strains_from_kinematics` and
+    :func:`rodnet.kernels.cosserat.stress_resultants_numpy` of the strain rates give them."""
+    arrays = _element_arguments(rest_length, reference_strain, stiffness, tau, x, q, velocity)
+    n = arrays[0].shape[0]
+    strain, stress = np.empty((n, 6)), np.empty((n, 6))
+    _section_state_kernel(*arrays, bool(tension_only), float(kink_strain), _SERIES,
+                          *_SWITCH_ANGLES, strain, stress)
+    return strain, stress
 
 
 # ---------------------------------------------------------------------------------------------
@@ -272,6 +291,62 @@ def _axial_energy_density(e, EA, Le, tension_only, kink):  # pragma: no cover - 
 
 
 @numba.njit(cache=True)
+def _strains_and_rates(rest_length, reference_strain, x, q, velocity, e, series, beta_angle,
+                       gamma_angle):  # pragma: no cover - compiled
+    """Kinematics, strains and strain rates of element ``e``.
+
+    Returns ``psi``, ``R_m`` (row-major 9-tuple), ``g``, ``phi = |psi|``, ``beta``, ``gamma``, the
+    strains ``[Gamma, K]`` (:func:`rodnet.kernels.cosserat_strain.strains_from_kinematics`), their
+    rates (:func:`rodnet.kernels.cosserat_strain.strain_rates_from_kinematics`) and the reduced
+    velocity ``[v2 - v1, W1, W2]`` as three 3-tuples.
+    """
+    (p0, p1, p2), R, (g0, g1, g2) = _kinematics(x, q, e)
+    Le = rest_length[e]
+    phi = np.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
+    beta = _beta(phi, series, beta_angle)
+    gamma = _gamma(phi, series, gamma_angle)
+    # strains [g / Le - Gamma0, psi / Le - K0] (strains_from_kinematics)
+    eps = (g0 / Le - reference_strain[e, 0], g1 / Le - reference_strain[e, 1],
+           g2 / Le - reference_strain[e, 2], p0 / Le - reference_strain[e, 3],
+           p1 / Le - reference_strain[e, 4], p2 / Le - reference_strain[e, 5])
+    # strain rates (strain_rates_from_kinematics)
+    vd0, vd1, vd2 = (velocity[e, 6] - velocity[e, 0], velocity[e, 7] - velocity[e, 1],
+                     velocity[e, 8] - velocity[e, 2])
+    a0, a1, a2 = velocity[e, 3], velocity[e, 4], velocity[e, 5]
+    b0, b1, b2 = velocity[e, 9], velocity[e, 10], velocity[e, 11]
+    w0, w1, w2 = b0 - a0, b1 - a1, b2 - a2
+    c0, c1, c2 = _cross(p0, p1, p2, w0, w1, w2)
+    z0 = 0.5 * (a0 + b0) + beta * c0
+    z1 = 0.5 * (a1 + b1) + beta * c1
+    z2 = 0.5 * (a2 + b2) + beta * c2
+    s0, s1, s2 = _cross(g0, g1, g2, z0, z1, z2)
+    cc0, cc1, cc2 = _cross(p0, p1, p2, c0, c1, c2)
+    k0, k1, k2 = _cross(p0, p1, p2, a0, a1, a2)
+    rate = ((R[0] * vd0 + R[3] * vd1 + R[6] * vd2 + s0) / Le,
+            (R[1] * vd0 + R[4] * vd1 + R[7] * vd2 + s1) / Le,
+            (R[2] * vd0 + R[5] * vd1 + R[8] * vd2 + s2) / Le,
+            (w0 + 0.5 * c0 + gamma * cc0 + k0) / Le,
+            (w1 + 0.5 * c1 + gamma * cc1 + k1) / Le,
+            (w2 + 0.5 * c2 + gamma * cc2 + k2) / Le)
+    return ((p0, p1, p2), R, (g0, g1, g2), phi, beta, gamma, eps, rate,
+            ((vd0, vd1, vd2), (a0, a1, a2), (b0, b1, b2)))
+
+
+@numba.njit(cache=True)
+def _resultants(stiffness, tau, e, eps, rate, tension_only, kink):  # pragma: no cover - compiled
+    """Stress resultants ``(N0, N1, N2, M0, M1, M2)`` of element ``e`` with the axial strain and
+    strain-rate moduli (:func:`rodnet.kernels.cosserat.stress_resultants_and_moduli`)."""
+    te = tau[e]
+    N0, D0, V0 = _axial(eps[0], rate[0], stiffness[e, 0], te, tension_only, kink)
+    N1 = stiffness[e, 1] * eps[1] + te * stiffness[e, 1] * rate[1]
+    N2 = stiffness[e, 2] * eps[2] + te * stiffness[e, 2] * rate[2]
+    M0 = stiffness[e, 3] * eps[3] + te * stiffness[e, 3] * rate[3]
+    M1 = stiffness[e, 4] * eps[4] + te * stiffness[e, 4] * rate[4]
+    M2 = stiffness[e, 5] * eps[5] + te * stiffness[e, 5] * rate[5]
+    return (N0, N1, N2, M0, M1, M2), D0, V0
+
+
+@numba.njit(cache=True)
 def _state_and_force(rest_length, reference_strain, stiffness, tau, x, q, velocity, tension_only,
                      kink, series, beta_angle, gamma_angle, force, psi_out, R_out, g_out,
                      coefficients, constitutive, velocity9):  # pragma: no cover - compiled
@@ -283,42 +358,12 @@ def _state_and_force(rest_length, reference_strain, stiffness, tau, x, q, veloci
     """
     store = psi_out.shape[0] > 0
     for e in range(rest_length.shape[0]):
-        (p0, p1, p2), R, (g0, g1, g2) = _kinematics(x, q, e)
-        Le = rest_length[e]
-        phi = np.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
-        beta = _beta(phi, series, beta_angle)
-        gamma = _gamma(phi, series, gamma_angle)
-        # strains [g / Le - Gamma0, psi / Le - K0] (strains_from_kinematics)
-        eps = (g0 / Le - reference_strain[e, 0], g1 / Le - reference_strain[e, 1],
-               g2 / Le - reference_strain[e, 2], p0 / Le - reference_strain[e, 3],
-               p1 / Le - reference_strain[e, 4], p2 / Le - reference_strain[e, 5])
-        # strain rates (strain_rates_from_kinematics)
-        vd0, vd1, vd2 = (velocity[e, 6] - velocity[e, 0], velocity[e, 7] - velocity[e, 1],
-                         velocity[e, 8] - velocity[e, 2])
-        a0, a1, a2 = velocity[e, 3], velocity[e, 4], velocity[e, 5]
-        b0, b1, b2 = velocity[e, 9], velocity[e, 10], velocity[e, 11]
-        w0, w1, w2 = b0 - a0, b1 - a1, b2 - a2
-        c0, c1, c2 = _cross(p0, p1, p2, w0, w1, w2)
-        z0 = 0.5 * (a0 + b0) + beta * c0
-        z1 = 0.5 * (a1 + b1) + beta * c1
-        z2 = 0.5 * (a2 + b2) + beta * c2
-        s0, s1, s2 = _cross(g0, g1, g2, z0, z1, z2)
-        cc0, cc1, cc2 = _cross(p0, p1, p2, c0, c1, c2)
-        k0, k1, k2 = _cross(p0, p1, p2, a0, a1, a2)
-        rate = ((R[0] * vd0 + R[3] * vd1 + R[6] * vd2 + s0) / Le,
-                (R[1] * vd0 + R[4] * vd1 + R[7] * vd2 + s1) / Le,
-                (R[2] * vd0 + R[5] * vd1 + R[8] * vd2 + s2) / Le,
-                (w0 + 0.5 * c0 + gamma * cc0 + k0) / Le,
-                (w1 + 0.5 * c1 + gamma * cc1 + k1) / Le,
-                (w2 + 0.5 * c2 + gamma * cc2 + k2) / Le)
-        # resultants (stress_resultants_and_moduli)
+        ((p0, p1, p2), R, (g0, g1, g2), phi, beta, gamma, eps, rate,
+         ((vd0, vd1, vd2), (a0, a1, a2), (b0, b1, b2))) = _strains_and_rates(
+            rest_length, reference_strain, x, q, velocity, e, series, beta_angle, gamma_angle)
         te = tau[e]
-        N0, D0, V0 = _axial(eps[0], rate[0], stiffness[e, 0], te, tension_only, kink)
-        N1 = stiffness[e, 1] * eps[1] + te * stiffness[e, 1] * rate[1]
-        N2 = stiffness[e, 2] * eps[2] + te * stiffness[e, 2] * rate[2]
-        M0 = stiffness[e, 3] * eps[3] + te * stiffness[e, 3] * rate[3]
-        M1 = stiffness[e, 4] * eps[4] + te * stiffness[e, 4] * rate[4]
-        M2 = stiffness[e, 5] * eps[5] + te * stiffness[e, 5] * rate[5]
+        (N0, N1, N2, M0, M1, M2), D0, V0 = _resultants(stiffness, tau, e, eps, rate,
+                                                         tension_only, kink)
         # reduced force (_reduced_force) and its expansion (expand_vector)
         h0, h1, h2 = _cross(N0, N1, N2, g0, g1, g2)
         ph0, ph1, ph2 = _cross(p0, p1, p2, h0, h1, h2)
@@ -385,6 +430,20 @@ def _internal_force_and_tangents_kernel(rest_length, reference_strain, stiffness
                      constitutive, velocity9)
     _tangents_kernel(psi, R_m, g, coefficients, constitutive, velocity9, 1.0 / rest_length,
                      stiffness_out, damping_out)
+
+
+@numba.njit(cache=True)
+def _section_state_kernel(rest_length, reference_strain, stiffness, tau, x, q, velocity,
+                          tension_only, kink, series, beta_angle, gamma_angle, strain_out,
+                          stress_out):  # pragma: no cover - compiled
+    """Strains ``[Gamma, K]`` and stress resultants ``[N, M]`` (with damping) of every element."""
+    for e in range(rest_length.shape[0]):
+        _, _, _, _, _, _, eps, rate, _ = _strains_and_rates(
+            rest_length, reference_strain, x, q, velocity, e, series, beta_angle, gamma_angle)
+        stress, _, _ = _resultants(stiffness, tau, e, eps, rate, tension_only, kink)
+        for k in range(6):
+            strain_out[e, k] = eps[k]
+            stress_out[e, k] = stress[k]
 
 
 @numba.njit(cache=True)
@@ -533,6 +592,11 @@ def _tangents_kernel(psi, R_m, g, coefficients, constitutive, velocity9, inv_le,
         for i in range(6):
             for j in range(9):
                 L9[3 + i, j] = B9[i, j]
+        # without viscosity (D_v = 0) the velocity terms (U9) and the damping tangent vanish
+        viscous = False
+        for k in range(6):
+            if constitutive[e, 12 + k] != 0.0:
+                viscous = True
         # derivatives of B9 at fixed stress (Q9) and fixed velocity (U9) (geometric_factors)
         for k in range(3):
             N[k], M[k] = constitutive[e, k], constitutive[e, 3 + k]
@@ -541,9 +605,7 @@ def _tangents_kernel(psi, R_m, g, coefficients, constitutive, velocity9, inv_le,
         h[1] = N[2] * g[e, 0] - N[0] * g[e, 2]
         h[2] = N[0] * g[e, 1] - N[1] * g[e, 0]
         _dexp_inv_derivative(p, M, gamma, gamma_d, D_M)
-        _dexp_inv_derivative(p, dW, gamma, gamma_d, D_dW)
         _midpoint_derivative(p, h, beta, beta_d, E_h)
-        _midpoint_derivative(p, dW, beta, beta_d, E_dW)
         _put_hat(1.0, N, hat_N, 0, 0)
         _put_product(-1.0, R, hat_N, Q9, 0, 0)
         _put_product(1.0, P2, hat_N, Q9, 3, 3)
@@ -553,33 +615,39 @@ def _tangents_kernel(psi, R_m, g, coefficients, constitutive, velocity9, inv_le,
                 Q9[3 + i, 6 + j] = E_h[i, j] - D_M[i, j]
                 Q9[6 + i, 6 + j] = D_M[i, j] - E_h[i, j]
         _add_hat(1.0, M, Q9, 6, 6)
-        for k in range(3):
-            Rv[k] = (R[0, k] * velocity9[e, 0] + R[1, k] * velocity9[e, 1]
-                     + R[2, k] * velocity9[e, 2])
-            z[k] = 0.0
-            for j in range(3):
-                z[k] += P2[j, k] * velocity9[e, 3 + j] + P2[k, j] * velocity9[e, 6 + j]
-        _put_hat(1.0, Rv, U9, 0, 0)
-        _put_hat(-1.0, z, U9, 0, 3)
-        _put_product(1.0, G, E_dW, U9, 0, 6)
-        for i in range(3):
-            for j in range(3):
-                U9[3 + i, 6 + j] = D_dW[i, j]
-        _add_hat(-1.0, velocity9[e, 3:6], U9, 3, 6)
+        if viscous:
+            _dexp_inv_derivative(p, dW, gamma, gamma_d, D_dW)
+            _midpoint_derivative(p, dW, beta, beta_d, E_dW)
+            for k in range(3):
+                Rv[k] = (R[0, k] * velocity9[e, 0] + R[1, k] * velocity9[e, 1]
+                         + R[2, k] * velocity9[e, 2])
+                z[k] = 0.0
+                for j in range(3):
+                    z[k] += P2[j, k] * velocity9[e, 3 + j] + P2[k, j] * velocity9[e, 6 + j]
+            _put_hat(1.0, Rv, U9, 0, 0)
+            _put_hat(-1.0, z, U9, 0, 3)
+            _put_product(1.0, G, E_dW, U9, 0, 6)
+            for i in range(3):
+                for j in range(3):
+                    U9[3 + i, 6 + j] = D_dW[i, j]
+            _add_hat(-1.0, velocity9[e, 3:6], U9, 3, 6)
+            _matmul(U9, L9, G_u)
         # K9 = B9^T Z9 + Q9 L9 with Z9 = (D B9 + D_v U9 L9) / Le;  C9 = B9^T D_v B9 / Le
-        _matmul(U9, L9, G_u)
         for i in range(6):
             a, b = constitutive[e, 6 + i] * inv_le[e], constitutive[e, 12 + i] * inv_le[e]
             for j in range(9):
-                Z9[i, j] = a * B9[i, j] + b * G_u[i, j]
+                Z9[i, j] = a * B9[i, j] + b * G_u[i, j] if viscous else a * B9[i, j]
         _matmul(Q9, L9, K9)
         for i in range(9):
             for j in range(9):
-                s, c = 0.0, 0.0
+                s = 0.0
                 for k in range(6):
                     s += B9[k, i] * Z9[k, j]
-                    c += B9[k, i] * constitutive[e, 12 + k] * B9[k, j]
                 K9[i, j] += s
+                c = 0.0
+                if viscous:
+                    for k in range(6):
+                        c += B9[k, i] * constitutive[e, 12 + k] * B9[k, j]
                 C9[i, j] = c * inv_le[e]
         # expand to the element DOF (expand_matrix)
         for bi in range(4):

@@ -1,8 +1,9 @@
 """Compiled versions of the per-node rotation updates used every Newton iteration.
 
-Same formulas as :mod:`rodnet.kernels.so3` (``retract``) and the gyroscopic term of
-:class:`~rodnet.formulations.cosserat.CosseratModel`; ``tests/kernels/test_so3.py`` checks them
-against the NumPy versions.
+Same formulas as :mod:`rodnet.kernels.so3` (``retract``, ``dexp``) and the gyroscopic term of
+:class:`~rodnet.formulations.cosserat.CosseratModel`; ``tests/kernels/test_so3.py`` checks
+``retract`` and ``gyroscopic`` against the NumPy versions. ``dexp`` only enters Newton's iteration
+matrix, where its last bits do not matter.
 """
 
 from __future__ import annotations
@@ -11,6 +12,8 @@ import math
 
 import numba
 import numpy as np
+
+from rodnet.kernels import so3
 
 
 @numba.njit(cache=True)
@@ -54,3 +57,41 @@ def gyroscopic(W, J):  # pragma: no cover - compiled
         d[i, 2, 0] = -w1 * J[i, 0] + j1
         d[i, 2, 1] = w0 * J[i, 1] - j0
     return f, d
+
+
+def dexp(psi: np.ndarray) -> np.ndarray:
+    """Tangent operators ``T(psi)`` (n, 3, 3) of rotation vectors ``psi`` (n, 3), as
+    :func:`rodnet.kernels.so3.dexp`."""
+    return _dexp_kernel(np.ascontiguousarray(psi, dtype=np.float64), so3._SERIES_ANGLE)
+
+
+@numba.njit(cache=True)
+def _dexp_kernel(psi, series_angle):  # pragma: no cover - compiled
+    """``I - (1 - cos phi)/phi^2 hat(psi) + (phi - sin phi)/phi^3 hat(psi)^2`` per row, with
+    ``hat(psi)^2 = psi psi^T - phi^2 I`` and the Taylor series of the last coefficient below
+    ``series_angle``."""
+    n = psi.shape[0]
+    out = np.empty((n, 3, 3))
+    for i in range(n):
+        x, y, z = psi[i, 0], psi[i, 1], psi[i, 2]
+        p2 = x * x + y * y + z * z
+        phi = math.sqrt(p2)
+        # (1 - cos phi)/phi^2 = sinc(phi/2)^2 / 2, free of cancellation
+        half = 0.5 * phi
+        sinc_half = math.sin(half) / half if half != 0.0 else 1.0
+        b = 0.5 * sinc_half * sinc_half
+        if phi < series_angle:
+            c = 1 / 6 - p2 * (1 / 120 - p2 * (1 / 5040 - p2 * (1 / 362880 - p2 / 39916800)))
+        else:
+            c = (phi - math.sin(phi)) / (phi * phi * phi)
+        diagonal = 1.0 - c * p2
+        out[i, 0, 0] = diagonal + c * x * x
+        out[i, 1, 1] = diagonal + c * y * y
+        out[i, 2, 2] = diagonal + c * z * z
+        out[i, 0, 1] = b * z + c * x * y
+        out[i, 1, 0] = -b * z + c * x * y
+        out[i, 0, 2] = -b * y + c * x * z
+        out[i, 2, 0] = b * y + c * x * z
+        out[i, 1, 2] = b * x + c * y * z
+        out[i, 2, 1] = -b * x + c * y * z
+    return out
