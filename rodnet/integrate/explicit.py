@@ -1,6 +1,8 @@
 """Explicit symplectic Euler for the lumped model, compiled, stepping exactly onto frame times.
 
-Scheme: ``elements/spring/FORMULATION.md`` (S9); stable step (S10).
+Scheme: ``elements/spring/FORMULATION.md`` (S9); stable step (S10). A model with rigid bodies
+runs the compiled loop with contact of :mod:`rodnet.integrate.explicit_contact` instead; a model
+without them never touches contact code.
 """
 
 from __future__ import annotations
@@ -38,6 +40,10 @@ def integrate_explicit(model: LumpedModel, x0: NDArray[np.float64], v0: NDArray[
     scratch = np.empty_like(x)
     stats = StepStats() if stats is None else stats  # filled in place: kept if the run fails
     on_frame(float(times[0]), x, v)
+    if getattr(model, "contact", None) is not None:
+        from rodnet.integrate.explicit_contact import march_with_contact
+
+        return march_with_contact(model, x, v, times, dt, on_frame, on_progress, stats)
     k = model.kernel_arguments()
     args = (*k[:6], model.inv_mass, *k[6:])
     for t_start, t_end in zip(times[:-1], times[1:]):

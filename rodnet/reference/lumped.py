@@ -173,6 +173,13 @@ class LumpedModel:
 
     def tangents(self, x: FloatArray, v: FloatArray, t: float, load_factor: float = 1.0):
         """g (n_dof,) and K = dg/dx, C = dg/dv on the free DOFs (cable tangents, no load stiffness)."""
+        g, K_blocks, C_blocks = self.tangent_blocks(x, v, t, load_factor)
+        pattern = self._pattern
+        return g.ravel(), pattern.matrix([K_blocks]), pattern.matrix([C_blocks])
+
+    def tangent_blocks(self, x: FloatArray, v: FloatArray, t: float, load_factor: float = 1.0,
+                       ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """g (N, 3) and the segment blocks (E, 6, 6) of K and C over the nodes ``[a, b]``."""
         vv = v.reshape(-1, 3)
         a, b = self.segments[:, 0], self.segments[:, 1]
         n, g_b, K_bb, C_bb = cable_tangents(x[a], x[b], vv[a], vv[b], self.rest_length, self.EA,
@@ -181,8 +188,7 @@ class LumpedModel:
         np.add.at(g, b, g_b)
         np.add.at(g, a, -g_b)
         g -= load_factor * self.external_force(t)
-        pattern = self._pattern
-        return g.ravel(), pattern.matrix([element_blocks(K_bb)]), pattern.matrix([element_blocks(C_bb)])
+        return g, element_blocks(K_bb), element_blocks(C_bb)
 
     def retract(self, x: FloatArray, dq: FloatArray) -> FloatArray:
         return x + dq.reshape(-1, 3)
@@ -255,4 +261,8 @@ def build_lumped(scene: Scene, structure: Structure) -> LumpedModel:
     if not math.isfinite(model.stable_step()):
         raise SceneError("supports", [s.node for s in scene.supports],
                          "every node is supported: nothing can move")
+    if scene.bodies:
+        from rodnet.contact.lumped import with_bodies
+
+        return with_bodies(model, scene)
     return model

@@ -1,0 +1,105 @@
+"""The lumped model (and cable threads) with fixed rigid bodies: contact as one more force term.
+
+:class:`LumpedContactModel` is a :class:`~rodnet.reference.lumped.LumpedModel` whose generalized
+force and tangents include the contact forces of :mod:`rodnet.contact.forces` (so backward Euler,
+generalized-alpha, midpoint and static runs see contact with its consistent tangent, (K4)), and
+whose explicit stability limit includes the contact springs (E1). Saved frames report contact
+through :class:`rodnet.contact.output.ContactLog`. The plain :class:`LumpedModel` of a scene
+without bodies has none of this. Two optional hooks tell the implicit integrator about contact: :meth:`LumpedContactModel.step_travel` (a step that moves a
+point near a body more than its travel limit is retried shorter) and
+:meth:`LumpedContactModel.after_step` (friction work of every accepted step).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from rodnet.config import Scene
+from rodnet.contact.bodies import BodyContact, build_body_contact
+from rodnet.contact.forces import contact_state, nodal_force, nodal_tangents, step_travel
+from rodnet.contact.laws import normal_energy
+from rodnet.integrate.frames import StepStats
+from rodnet.reference.lumped import FloatArray, LumpedModel
+
+
+@dataclass(frozen=True)
+class LumpedContactModel(LumpedModel):
+    """A lumped model with fixed bodies (see the module docstring).
+
+    Attributes
+    ----------
+    contact : BodyContact
+    """
+
+    contact: BodyContact
+
+    def energy(self, x: FloatArray, v: FloatArray, t: float) -> dict[str, float]:
+        """Kinetic, elastic and external-load energy [J] as the lumped model, plus ``contact``:
+        the energy stored in the penalty springs (N4)."""
+        out = super().energy(x, v, t)
+        out["contact"] = sum(_penalty_energy(self.contact, b, np.asarray(x))
+                             for b in range(self.contact.n_bodies))
+        return out
+
+    def generalized_force(self, x: FloatArray, v: FloatArray, t: float,
+                          load_factor: float = 1.0) -> FloatArray:
+        g = super().generalized_force(x, v, t, load_factor)
+        return g - nodal_force(self.contact, x, v.reshape(-1, 3)).ravel()
+
+    def tangents(self, x: FloatArray, v: FloatArray, t: float, load_factor: float = 1.0):
+        """g (n_dof,), K and C on the free DOFs, with the contact tangent (K4) added to each
+        segment's block."""
+        g, K_blocks, C_blocks = self.tangent_blocks(x, v, t, load_factor)
+        c = nodal_tangents(self.contact, x, v.reshape(-1, 3))
+        g -= c.force
+        pattern = self._pattern
+        return g.ravel(), pattern.matrix([K_blocks - c.d_position]), \
+            pattern.matrix([C_blocks - c.d_velocity])
+
+    def stable_step(self) -> float:
+        """(S10) combined with the contact springs (E1): ``1/dt^2 = 1/dt_seg^2 + 1/dt_contact^2``,
+        which is ``omega^2 = omega_seg^2 + omega_contact^2`` without damping."""
+        segments = super().stable_step()
+        contact = self.contact.stable_step(self.inv_mass)
+        if not math.isfinite(contact):
+            return segments
+        return 1.0 / math.sqrt(1.0 / segments**2 + 1.0 / contact**2)
+
+    def active_set(self, x: FloatArray, v: FloatArray) -> int:
+        pressed = nodal_force(self.contact, x, v.reshape(-1, 3))
+        return hash((super().active_set(x, v), np.packbits(np.any(pressed != 0.0, axis=1)).tobytes()))
+
+    def step_travel(self, x_old: FloatArray, x_new: FloatArray) -> float:
+        """Travel of the points near a body over a step as a multiple of the travel limit."""
+        return step_travel(self.contact, np.asarray(x_old), np.asarray(x_new))
+
+    def after_step(self, x: FloatArray, v: FloatArray, dt: float, stats: StepStats) -> None:
+        """Add the friction work of an accepted step ending in ``x``, ``v`` to
+        ``stats.extra["friction_work"]`` [J] (friction power at the end of the step times dt)."""
+        power = contact_state(self.contact, np.asarray(x), np.asarray(v).reshape(-1, 3)).friction_power
+        stats.extra["friction_work"] = stats.extra.get("friction_work", 0.0) + dt * power
+
+
+def _penalty_energy(contact: BodyContact, b: int, x: FloatArray) -> float:
+    """Energy stored in the penalty springs of body ``b`` (N4) [J]."""
+    from rodnet.contact.broadphase import contact_points
+
+    points = contact_points(x[contact.segments], contact.radius, contact.position[b],
+                            contact.rotation[b], contact.shapes[b].bounds, contact.law.smoothing,
+                            contact.points_per_segment, contact.segments)
+    if not len(points.segment):
+        return 0.0
+    delta = contact.radius[points.segment] - contact.shapes[b].query(points.local).distance
+    return float(normal_energy(delta, contact.law.stiffness, contact.law.smoothing).sum())
+
+
+def with_bodies(model: LumpedModel, scene: Scene) -> LumpedContactModel:
+    """``model`` with the fixed bodies and contact law of ``scene``."""
+    contact = build_body_contact(scene, model.structure)
+    assert contact is not None
+    fields = {f.name: getattr(model, f.name) for f in dataclasses.fields(model)}
+    return LumpedContactModel(**fields, contact=contact)

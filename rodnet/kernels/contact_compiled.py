@@ -1,0 +1,364 @@
+"""Compiled contact forces of thread points against fixed rigid bodies, and the explicit step loop
+of the lumped model with contact.
+
+One call of :func:`accumulate_contact` does, for every body, the broad phase (B1)-(B2) over all
+segments, the signed distance and normal of each candidate point ((G4)-(G10): box, cylinder,
+sphere, triangle mesh through its bounding-volume hierarchy), the penalty normal force (N1)-(N3),
+velocity-regularised friction (F1)-(F2) and the distribution to the segment's nodes (B5) with the
+body's reaction (B6). Equations: ``elements/contact/FORMULATION.md``. The NumPy building blocks of
+:mod:`rodnet.contact` are the oracle: ``tests/contact/test_contact_model.py`` checks this kernel
+against them point by point.
+
+Two things are specific to the explicit scheme, (E2)-(E3). Friction's viscous slope ``mu N / S`` is capped
+at ``m_eff / (dt share)`` (``m_eff`` the point's effective mass ``1 / (N_a^2/m_a + N_b^2/m_b)``,
+``share`` the number of points that can act on its nodes), the largest damping a symplectic Euler
+step resolves without overshoot; it only acts below a slip speed of order
+``mu N dt share / m_eff`` and leaves sliding friction ``mu N`` unchanged. And every segment whose
+nodes could reach a body within the step reports the step that keeps its travel within the body's
+travel limit, so the loop can shorten the step before a point jumps over a thin body.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from rodnet.contact.mesh_distance import _box_distance2, _triangle_barycentric
+from rodnet.kernels.lumped_explicit import accumulate_forces
+
+_STACK_DEPTH = 128
+
+
+@numba.njit(cache=True)
+def _box(h, p, n):  # pragma: no cover - compiled
+    """(G4)-(G5): signed distance of body-frame point ``p`` to the box of half extents ``h``;
+    the outward normal is written to ``n``."""
+    e0, e1, e2 = abs(p[0]) - h[0], abs(p[1]) - h[1], abs(p[2]) - h[2]
+    if e0 > 0.0 or e1 > 0.0 or e2 > 0.0:
+        d2 = 0.0
+        for k in range(3):
+            diff = p[k] - min(max(p[k], -h[k]), h[k])
+            n[k] = diff
+            d2 += diff * diff
+        d = math.sqrt(d2)
+        for k in range(3):
+            n[k] /= d
+        return d
+    a = 0 if (e0 >= e1 and e0 >= e2) else (1 if e1 >= e2 else 2)
+    n[0] = n[1] = n[2] = 0.0
+    n[a] = -1.0 if p[a] < 0.0 else 1.0
+    return abs(p[a]) - h[a]
+
+
+@numba.njit(cache=True)
+def _cylinder(radius, length, axis, p, n):  # pragma: no cover - compiled
+    """(G6)-(G7) for a cylinder along body axis ``axis``."""
+    z = p[axis]
+    e_r = np.zeros(3)
+    rho2 = 0.0
+    for k in range(3):
+        if k != axis:
+            e_r[k] = p[k]
+            rho2 += p[k] * p[k]
+    rho = math.sqrt(rho2)
+    if rho <= 1e-12 * radius:
+        e_r[:] = 0.0
+        e_r[(axis + 1) % 3] = 1.0
+    else:
+        for k in range(3):
+            e_r[k] /= rho
+    side, cap = rho - radius, abs(z) - 0.5 * length
+    s = -1.0 if z < 0.0 else 1.0
+    if side > 0.0 or cap > 0.0:
+        a, b = max(side, 0.0), max(cap, 0.0)
+        for k in range(3):
+            n[k] = a * e_r[k]
+        n[axis] += b * s
+        d = math.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
+        for k in range(3):
+            n[k] /= d
+        return d
+    if side >= cap:
+        for k in range(3):
+            n[k] = e_r[k]
+        return side
+    n[0] = n[1] = n[2] = 0.0
+    n[axis] = s
+    return cap
+
+
+@numba.njit(cache=True)
+def _sphere(radius, p, n):  # pragma: no cover - compiled
+    """(G8)."""
+    rho = math.sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2])
+    if rho <= 1e-12 * radius:
+        n[0], n[1], n[2] = 0.0, 0.0, 1.0
+    else:
+        for k in range(3):
+            n[k] = p[k] / rho
+    return rho - radius
+
+
+@numba.njit(cache=True)
+def _mesh(p, root, on_surface, tri, lower, upper, left, right, start, count, order,
+          face_normal, edge_normal, corner_normal, stack, w, n):  # pragma: no cover - compiled
+    """(G9)-(G10): nearest triangle through the hierarchy below ``root``, sign and normal from
+    the pseudonormal of the closest feature."""
+    best, face = np.inf, -1
+    b0 = b1 = b2 = 0.0
+    stack[0] = root
+    depth = 1
+    while depth > 0:
+        depth -= 1
+        node = stack[depth]
+        if _box_distance2(p, lower, upper, node) >= best:
+            continue
+        if count[node] > 0:
+            for j in range(start[node], start[node] + count[node]):
+                f = order[j]
+                _triangle_barycentric(p, tri[f, 0], tri[f, 1], tri[f, 2], w)
+                d = 0.0
+                for k in range(3):
+                    d += (p[k] - w[0] * tri[f, 0, k] - w[1] * tri[f, 1, k] - w[2] * tri[f, 2, k]) ** 2
+                if d < best:
+                    best, face = d, f
+                    b0, b1, b2 = w[0], w[1], w[2]
+            continue
+        near, far = left[node], right[node]
+        if _box_distance2(p, lower, upper, far) < _box_distance2(p, lower, upper, near):
+            near, far = far, near
+        stack[depth], stack[depth + 1] = far, near
+        depth += 2
+    zeros = int(b0 == 0.0) + int(b1 == 0.0) + int(b2 == 0.0)
+    if zeros == 1:
+        i = 0 if b0 == 0.0 else (1 if b1 == 0.0 else 2)
+        pseudo = edge_normal[face, (i + 1) % 3]
+    elif zeros == 2:
+        pseudo = corner_normal[face, 0 if b0 != 0.0 else (1 if b1 != 0.0 else 2)]
+    else:
+        pseudo = face_normal[face]
+    diff = np.empty(3)
+    dot = 0.0
+    for k in range(3):
+        diff[k] = p[k] - (b0 * tri[face, 0, k] + b1 * tri[face, 1, k] + b2 * tri[face, 2, k])
+        dot += diff[k] * pseudo[k]
+    sign = -1.0 if dot < 0.0 else 1.0
+    unsigned = math.sqrt(best)
+    for k in range(3):
+        n[k] = sign * diff[k] / unsigned if unsigned > on_surface else pseudo[k]
+    return sign * unsigned
+
+
+@numba.njit(cache=True)
+def _segment_near(la, lb, reach, bounds):  # pragma: no cover - compiled
+    """Does the box of segment ``la``-``lb`` grown by ``reach`` overlap ``bounds`` (2, 3)?"""
+    for k in range(3):
+        if min(la[k], lb[k]) - reach > bounds[1, k] or max(la[k], lb[k]) + reach < bounds[0, k]:
+            return False
+    return True
+
+
+@numba.njit(cache=True)
+def _distance(code, size, root, p, n, tri, lower, upper, left, right, start, count, order,
+              face_normal, edge_normal, corner_normal, stack, w):  # pragma: no cover - compiled
+    """Signed distance of body-frame point ``p`` to a body of shape ``code`` (0 box, 1 cylinder,
+    2 sphere, 3 mesh) with parameters ``size`` (3,); the outward normal goes to ``n``."""
+    if code == 0:
+        return _box(size, p, n)
+    if code == 1:
+        return _cylinder(size[0], size[1], int(size[2]), p, n)
+    if code == 2:
+        return _sphere(size[0], p, n)
+    return _mesh(p, root, size[0], tri, lower, upper, left, right, start, count, order,
+                 face_normal, edge_normal, corner_normal, stack, w, n)
+
+
+@numba.njit(cache=True)
+def _point_force(delta, nl, R, xi, a, b, v, dt, inv_mass, node_share, stiffness, damping,
+                 friction, smoothing, slip_velocity, force, body_force, nw, vp):  # pragma: no cover
+    """Force on the point at ``xi`` of segment a-b with penetration ``delta`` and body-frame
+    normal ``nl``, (N1)-(N3), (F1)-(F2) with the explicit cap (E2); added to the nodes' ``force``
+    (B5) and, opposite, to the body's ``body_force`` (3,) (B6).
+
+    Returns the magnitude of the point force [N] and the friction power [W], or (-1, 0) when
+    the point does not press on the body."""
+    if delta <= -smoothing or (smoothing == 0.0 and delta <= 0.0):
+        return -1.0, 0.0
+    if delta < smoothing:
+        t = delta + smoothing
+        rho, slope = t * t / (4.0 * smoothing), t / (2.0 * smoothing)
+    else:
+        rho, slope = delta, 1.0
+    vn = 0.0
+    for k in range(3):
+        nw[k] = R[k, 0] * nl[0] + R[k, 1] * nl[1] + R[k, 2] * nl[2]
+        vp[k] = (1.0 - xi) * v[a, k] + xi * v[b, k]
+        vn += nw[k] * vp[k]
+    normal = stiffness * rho - damping * slope * vn
+    if normal <= 0.0:
+        return -1.0, 0.0
+    slip2 = 0.0
+    for k in range(3):
+        vp[k] -= vn * nw[k]
+        slip2 += vp[k] * vp[k]
+    viscous = friction * normal / math.sqrt(slip2 + slip_velocity * slip_velocity)
+    if dt > 0.0:
+        wa, wb = 1.0 - xi, xi
+        compliance = wa * wa * inv_mass[a] + wb * wb * inv_mass[b]
+        share = max(node_share[a] if wa > 0.0 else 0, node_share[b] if wb > 0.0 else 0)
+        if compliance > 0.0:
+            viscous = min(viscous, 1.0 / (compliance * dt * share))
+    f2 = 0.0
+    for k in range(3):
+        fk = normal * nw[k] - viscous * vp[k]
+        force[a, k] += (1.0 - xi) * fk
+        force[b, k] += xi * fk
+        body_force[k] -= fk
+        f2 += fk * fk
+    return math.sqrt(f2), viscous * slip2
+
+
+@numba.njit(cache=True)
+def accumulate_contact(x, v, force, dt, inv_mass, segments, radius, node_share,
+                       kind, body_position, body_rotation, body_size, body_bounds, bound_radius,
+                       travel_limit, mesh_root, tri, lower, upper, left, right, start, count,
+                       order, face_normal, edge_normal, corner_normal,
+                       stiffness, damping, friction, smoothing, slip_velocity, points_per_segment,
+                       taken, body_force):  # pragma: no cover - compiled
+    """Add the contact forces on the nodes to ``force`` (N, 3) [N].
+
+    ``dt`` > 0 caps friction's viscous slope for a symplectic Euler step of that size and checks
+    the travel of segments near bodies; ``dt`` <= 0 evaluates the plain law. ``taken`` (N,) bool
+    is scratch space, all False on entry and on return; ``body_force`` (B, 3) receives the force
+    of the threads on each body [N].
+
+    Returns
+    -------
+    friction_power : float
+        Rate of work dissipated by friction [W], >= 0.
+    total_force : float
+        Sum of the magnitudes of the point forces [N].
+    contacts : int
+        Points with a positive normal force.
+    allowed_step : float
+        The largest step [s] that keeps every segment near a body within its travel limit
+        (inf when none is limiting, or ``dt`` <= 0).
+    """
+    n_seg, n_pts = segments.shape[0], points_per_segment
+    power, total, contacts, allowed = 0.0, 0.0, 0, np.inf
+    stack = np.empty(_STACK_DEPTH, np.int64)
+    w, nl, nw, pl = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
+    la, lb, vp = np.empty(3), np.empty(3), np.empty(3)
+    marked = np.empty(x.shape[0], np.int64)
+    for bi in range(kind.shape[0]):
+        R, bounds = body_rotation[bi], body_bounds[bi]
+        body_force[bi, 0] = body_force[bi, 1] = body_force[bi, 2] = 0.0
+        n_marked = 0
+        for s in range(n_seg):
+            a, b = segments[s, 0], segments[s, 1]
+            speed = math.sqrt(max(v[a, 0] ** 2 + v[a, 1] ** 2 + v[a, 2] ** 2,
+                                  v[b, 0] ** 2 + v[b, 1] ** 2 + v[b, 2] ** 2))
+            reach_points = radius[s] + smoothing
+            reach = reach_points + (speed * dt if dt > 0.0 else 0.0)
+            far = 0.0
+            half = 0.0
+            for k in range(3):
+                far += (0.5 * (x[a, k] + x[b, k]) - body_position[bi, k]) ** 2
+                half += (x[b, k] - x[a, k]) ** 2
+            if math.sqrt(far) > bound_radius[bi] + 0.5 * math.sqrt(half) + reach:
+                continue
+            for k in range(3):
+                la[k] = (R[0, k] * (x[a, 0] - body_position[bi, 0]) + R[1, k] * (x[a, 1] - body_position[bi, 1])
+                         + R[2, k] * (x[a, 2] - body_position[bi, 2]))
+                lb[k] = (R[0, k] * (x[b, 0] - body_position[bi, 0]) + R[1, k] * (x[b, 1] - body_position[bi, 1])
+                         + R[2, k] * (x[b, 2] - body_position[bi, 2]))
+            if not _segment_near(la, lb, reach, bounds):
+                continue
+            if dt > 0.0 and speed * dt > travel_limit[bi]:  # (E3)
+                allowed = min(allowed, travel_limit[bi] / speed)
+            if not _segment_near(la, lb, reach_points, bounds):
+                continue
+            for j in range(n_pts + 1):
+                xi = j / n_pts
+                if j == 0 or j == n_pts:
+                    node = a if j == 0 else b
+                    if taken[node]:
+                        continue
+                    taken[node] = True
+                    marked[n_marked] = node
+                    n_marked += 1
+                inside = True
+                for k in range(3):
+                    pl[k] = (1.0 - xi) * la[k] + xi * lb[k]
+                    if pl[k] < bounds[0, k] - reach_points or pl[k] > bounds[1, k] + reach_points:
+                        inside = False
+                if not inside:
+                    continue
+                d = _distance(kind[bi], body_size[bi], mesh_root[bi], pl, nl, tri, lower, upper,
+                              left, right, start, count, order, face_normal, edge_normal,
+                              corner_normal, stack, w)
+                magnitude, dissipation = _point_force(
+                    radius[s] - d, nl, R, xi, a, b, v, dt, inv_mass, node_share, stiffness,
+                    damping, friction, smoothing, slip_velocity, force, body_force[bi], nw, vp)
+                if magnitude >= 0.0:
+                    total += magnitude
+                    contacts += 1
+                    power += dissipation
+        for i in range(n_marked):
+            taken[marked[i]] = False
+    return power, total, contacts, allowed
+
+
+@numba.njit(cache=True)
+def advance_contact(x, v, force, t0, dt, n_steps,
+                    segments, rest_length, EA, etaA, kink_strain, tension_only,
+                    inv_mass, gravity_force, load_nodes, load_force, load_ramp,
+                    radius, node_share, kind, body_position, body_rotation, body_size,
+                    body_bounds, bound_radius, travel_limit, mesh_root, tri, lower, upper, left,
+                    right, start, count, order, face_normal, edge_normal, corner_normal,
+                    stiffness, damping, friction, smoothing, slip_velocity, points_per_segment,
+                    taken, body_force):  # pragma: no cover - compiled
+    """Advance ``x``, ``v`` (N, 3) in place by up to ``n_steps`` symplectic Euler steps (S9)
+    with segment forces, external loads and contact.
+
+    Returns
+    -------
+    max_tension : float
+        Largest segment force met [N].
+    done : int
+        Steps done.
+    friction_work : float
+        Work dissipated by friction over those steps [J].
+    status : int
+        0: all steps done; 1: a non-finite value appeared (in step ``done``); 2: stopped before
+        step ``done + 1`` because a point near a body would move more than its travel limit.
+    allowed_step : float
+        For status 2, the step [s] that respects the travel limit at that moment.
+    """
+    max_tension, work = 0.0, 0.0
+    for step in range(n_steps):
+        peak = accumulate_forces(x, v, t0 + step * dt, force, segments, rest_length, EA, etaA,
+                                 kink_strain, tension_only, gravity_force, load_nodes,
+                                 load_force, load_ramp)
+        power, _, _, allowed = accumulate_contact(
+            x, v, force, dt, inv_mass, segments, radius, node_share, kind, body_position,
+            body_rotation, body_size, body_bounds, bound_radius, travel_limit, mesh_root, tri,
+            lower, upper, left, right, start, count, order, face_normal, edge_normal,
+            corner_normal, stiffness, damping, friction, smoothing, slip_velocity,
+            points_per_segment, taken, body_force)
+        if allowed < dt:
+            return max_tension, step, work, 2, allowed
+        max_tension = max(max_tension, peak)
+        work += dt * power
+        finite = True
+        for i in range(x.shape[0]):
+            for k in range(3):
+                v[i, k] += dt * force[i, k] * inv_mass[i]
+                x[i, k] += dt * v[i, k]
+            if not (math.isfinite(x[i, 0]) and math.isfinite(x[i, 1]) and math.isfinite(x[i, 2])):
+                finite = False
+        if not finite:
+            return max_tension, step + 1, work, 1, np.inf
+    return max_tension, n_steps, work, 0, np.inf

@@ -1,0 +1,320 @@
+"""Contact inside the lumped model: the compiled kernel against the NumPy oracle, the consistent
+tangent against finite differences, the explicit stability limit against the exact contact
+frequency, and the travel limits of both integrators."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+from rodnet.contact.forces import contact_state, nodal_force, nodal_tangents
+from rodnet.integrate.explicit import integrate_explicit
+from rodnet.kernels.contact_compiled import accumulate_contact
+from rodnet.run import prepare
+from rodnet.scene import scene_from_toml
+
+RNG = np.random.default_rng(5)
+
+MATERIAL = """
+[[materials]]
+name = "cord"
+density = 1000.0
+youngs_modulus = 1.0e9
+diameter = {diameter}
+mass_per_length = 0.01
+axial_stiffness = 1.0e3
+"""
+
+
+def four_bodies_scene(tmp_path: Path, diameter: float = 0.01, smoothing: float = 1e-3,
+                      nodes: int = 400) -> str:
+    """A long rod far from four bodies: a box, a cylinder, a sphere and a mesh (icosphere)."""
+    mesh = tmp_path / "ball.stl"
+    trimesh.creation.icosphere(subdivisions=2, radius=0.3).export(mesh)
+    return f"""
+[simulation]
+integrator = "backward-euler"
+[model]
+type = "lumped"
+axial = "linear"
+{MATERIAL.format(diameter=diameter)}
+[[rods]]
+name = "r"
+material = "cord"
+points = [[-10.0, 0.0, 5.0], [10.0, 0.0, 5.0]]
+elements = {nodes - 1}
+
+[[bodies]]
+name = "box"
+shape = "box"
+size = [0.6, 0.4, 0.3]
+position = [0.0, 0.0, 0.0]
+orientation_deg = [20.0, -35.0, 10.0]
+fixed = true
+
+[[bodies]]
+name = "can"
+shape = "cylinder"
+size = [0.5, 0.5, 0.8]
+position = [2.0, 0.0, 0.0]
+orientation_deg = [0.0, 60.0, 0.0]
+fixed = true
+
+[[bodies]]
+name = "ball"
+shape = "sphere"
+size = [0.6, 0.6, 0.6]
+position = [4.0, 0.0, 0.0]
+fixed = true
+
+[[bodies]]
+name = "mesh"
+shape = "mesh"
+file = "{mesh}"
+position = [6.0, 0.0, 0.0]
+orientation_deg = [0.0, 0.0, 45.0]
+fixed = true
+
+[contact]
+stiffness = 2.0e3
+damping = 3.0
+friction = 0.4
+smoothing = {smoothing}
+slip_velocity = 0.05
+points_per_segment = 3
+"""
+
+
+def near_surfaces(model, gap: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """Node positions (N, 3) on a random walk near the four bodies' surfaces, with the signed
+    distance of every node within ``gap``, and random velocities (N, 3)."""
+    contact = model.contact
+    n = model.structure.n_nodes
+    x = np.empty((n, 3))
+    for i in range(n):
+        b = (i // 25) % contact.n_bodies
+        shape, R, p = contact.shapes[b], contact.rotation[b], contact.position[b]
+        # closest points of points inside the body lie on faces, away from the mirror planes
+        # of a symmetric mesh, whose interior chords would tie between two closest triangles
+        local = shape.query(RNG.uniform(0.8 * shape.bounds[0], 0.8 * shape.bounds[1])[None]).closest[0]
+        normal = shape.query(local[None] * 1.001).normal[0]
+        local = local + RNG.uniform(*gap) * normal
+        x[i] = p + R @ local
+    return x, RNG.normal(scale=0.2, size=(n, 3))
+
+
+@pytest.fixture(scope="module")
+def model(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("bodies")
+    return prepare(scene_from_toml(four_bodies_scene(tmp))).model
+
+
+def compiled(model, x, v, dt=0.0):
+    contact = model.contact
+    force = np.zeros_like(x)
+    body_force = np.zeros((contact.n_bodies, 3))
+    taken = np.zeros(len(x), dtype=np.bool_)
+    out = accumulate_contact(x, v, force, dt, *contact.kernel_arguments(model.inv_mass), taken,
+                             body_force)
+    assert not taken.any()
+    return force, body_force, out
+
+
+def test_compiled_contact_matches_the_numpy_oracle(model) -> None:
+    x, v = near_surfaces(model, (-0.008, 0.012))
+    force, body_force, (power, total, count, allowed) = compiled(model, x, v)
+    expected = nodal_force(model.contact, x, v)
+    state = contact_state(model.contact, x, v)
+    assert 100 < count == state.count
+    np.testing.assert_allclose(force, expected, rtol=1e-10, atol=1e-10 * np.abs(expected).max())
+    np.testing.assert_allclose(body_force, state.body_force, rtol=1e-10, atol=1e-9)
+    assert total == pytest.approx(state.total_force, rel=1e-10)
+    assert power == pytest.approx(state.friction_power, rel=1e-10) and power > 0
+    assert allowed == np.inf
+    # every body takes part, and the reaction balances the nodal forces
+    assert (np.abs(body_force).sum(axis=1) > 0).all()
+    np.testing.assert_allclose(force.sum(axis=0), -body_force.sum(axis=0), atol=1e-9)
+
+
+def test_contact_tangents_match_central_differences(tmp_path: Path) -> None:
+    m = prepare(scene_from_toml(four_bodies_scene(tmp_path, nodes=80))).model
+    x, v = near_surfaces(m, (0.0, 0.006))   # centrelines outside, within r + s of the surface
+    vf = v.ravel()
+    g, K, C = m.tangents(x, vf, 0.0)
+    assert nodal_tangents(m.contact, x, v).force.any()
+    h = 1e-7
+    rows = RNG.choice(m.n_dof, 40, replace=False)
+    for j in rows:
+        e = np.zeros(m.n_dof)
+        e[j] = h
+        dx = (m.generalized_force(x + e.reshape(-1, 3), vf, 0.0)
+              - m.generalized_force(x - e.reshape(-1, 3), vf, 0.0)) / (2 * h)
+        dv = (m.generalized_force(x, vf + e, 0.0) - m.generalized_force(x, vf - e, 0.0)) / (2 * h)
+        scale = np.abs(K.toarray()).max()
+        np.testing.assert_allclose(K[:, j].toarray().ravel(), dx, atol=2e-5 * scale)
+        np.testing.assert_allclose(C[:, j].toarray().ravel(), dv,
+                                   atol=2e-5 * np.abs(C.toarray()).max())
+
+
+CHAIN = """
+[simulation]
+duration = {duration}
+integrator = "explicit"
+adaptive = false
+dt = {dt}
+gravity = [0.0, 0.0, -9.81]
+[model]
+type = "lumped"
+axial = "linear"
+[[materials]]
+name = "cord"
+density = 1000.0
+youngs_modulus = 1.0e9
+diameter = 2.0e-3
+mass_per_length = 0.01
+axial_stiffness = 1.0
+[[rods]]
+name = "r"
+material = "cord"
+points = [[-0.3, 0.0, 0.50102], [0.3, 0.0, 0.50102]]
+elements = 12
+[[bodies]]
+name = "table"
+shape = "box"
+size = [1.0, 1.0, 1.0]
+fixed = true
+[contact]
+stiffness = {k}
+damping = 0.0
+friction = 0.0
+smoothing = 0.0
+[output]
+frame_interval = 0.01
+vtk = false
+"""
+
+
+def test_stable_step_bounds_the_contact_frequency_of_a_chain_lying_on_a_box() -> None:
+    """With every point pressed, the highest frequency of M^-1 K is the uniform bounce of the
+    chain; the estimate must be below its limit 2/omega_max and not far below."""
+    scene = scene_from_toml(CHAIN.format(duration=0.1, dt=1e-5, k=1e4))
+    p = prepare(scene)
+    m = p.model
+    x = p.q0.copy()
+    x[:, 2] = 0.5 + 0.001 - 1e-4   # all points pressed 0.1 mm
+    t = nodal_tangents(m.contact, x, np.zeros_like(x))
+    K = m._pattern.matrix([-t.d_position]).toarray()
+    free = m.free
+    w2 = np.linalg.eigvals(K / m.dof_mass[free][:, None]).real.max()
+    exact = 2.0 / np.sqrt(w2)
+    estimate = m.contact.stable_step(m.inv_mass)
+    assert 0.6 * exact <= estimate <= exact
+
+
+def test_explicit_friction_cap_leaves_sliding_alone_and_limits_creep() -> None:
+    """Friction's viscous slope mu N / |v_T| is capped at what one explicit step resolves: no
+    change while sliding, a smaller force at creep speeds."""
+    p = prepare(scene_from_toml(CHAIN.format(duration=0.1, dt=1e-5, k=1e4).replace(
+        "friction = 0.0", "friction = 0.5")))
+    x = p.q0.copy()
+    x[:, 2] = 0.5 + 0.001 - 1e-4
+    sliding = np.tile([1.0, 0.0, 0.0], (len(x), 1))
+    dt = 1e-5
+    np.testing.assert_allclose(compiled(p.model, x, sliding, dt)[0], compiled(p.model, x, sliding)[0],
+                               rtol=1e-12)
+    creep = 1e-7 * sliding
+    capped, plain = compiled(p.model, x, creep, dt)[0], compiled(p.model, x, creep)[0]
+    np.testing.assert_allclose(capped[:, 2], plain[:, 2], rtol=1e-12)   # the normal force stays
+    assert (np.abs(capped[:, 0]) < 0.5 * np.abs(plain[:, 0])).all()
+    # capped: the friction impulse of one step cannot reverse the node's slip
+    assert (np.abs(capped[:, 0]) * dt * p.model.inv_mass <= 1e-7 * (1 + 1e-9)).all()
+
+
+def test_chain_pressed_on_a_box_is_stable_below_the_limit_and_not_above_the_exact_one() -> None:
+    """The chain rests pressed into the box (gravity keeps every point in contact), so the
+    contact springs act as linear springs: symplectic Euler is stable below the estimate and
+    unstable above the exact limit 2 / omega_max."""
+    scene = scene_from_toml(CHAIN.format(duration=0.1, dt=1e-5, k=1e4).replace(
+        "gravity = [0.0, 0.0, -9.81]", "gravity = [0.0, 0.0, -200.0]"))
+    p = prepare(scene)
+    m = p.model
+    depth = m.mass[1] * 200.0 / (2 * 1e4)    # an interior node on its own point and two halves
+    x0 = p.q0.copy()
+    x0[:, 2] = 0.5 + 0.001 - depth
+    # the exact equilibrium: one Newton step, the pressed contact being linear in the depth
+    g, K, _ = m.tangents(x0, np.zeros(m.n_dof), 0.0)
+    z = np.arange(2, m.n_dof, 3)
+    x0[:, 2] -= np.linalg.solve(K.toarray()[np.ix_(z, z)], g[z])
+    assert np.abs(m.generalized_force(x0, np.zeros(m.n_dof), 0.0)[z]).max() < 1e-10
+    x0[0, 2] -= 0.01 * depth                  # a small push that keeps every point pressed
+    t = nodal_tangents(m.contact, x0, np.zeros_like(x0))
+    K = m._pattern.matrix([-t.d_position]).toarray()
+    exact = 2.0 / np.sqrt(np.linalg.eigvals(K / m.dof_mass[m.free][:, None]).real.max())
+
+    def swing(dt: float) -> float:
+        times = np.arange(0, 2001, 100) * dt      # whole steps between frames: the step is dt
+        z = []
+        integrate_explicit(m, x0, np.zeros_like(x0), times, dt, lambda t, x, v: z.append(x[:, 2].copy()))
+        return float(np.abs(np.array(z) - x0[:, 2]).max())
+
+    assert swing(0.95 * m.stable_step()) < 0.1 * depth
+    assert swing(1.1 * exact) > 100 * depth
+
+
+PLATE_SHOT = """
+[simulation]
+duration = 0.004
+integrator = "{integrator}"
+dt = 1.0e-3
+gravity = [0.0, 0.0, 0.0]
+[model]
+type = "lumped"
+axial = "linear"
+[[materials]]
+name = "cord"
+density = 1000.0
+youngs_modulus = 1.0e9
+diameter = 1.0e-3
+mass_per_length = 0.01
+axial_stiffness = 10.0
+[[rods]]
+name = "r"
+material = "cord"
+points = [[0.0, 0.0, 0.0], [0.05, 0.0, 0.0]]
+elements = 1
+velocity = [0.0, 0.0, 10.0]
+[[bodies]]
+name = "plate"
+shape = "box"
+size = [0.5, 0.5, 0.002]
+position = [0.0, 0.0, 0.006]
+fixed = true
+[contact]
+stiffness = 1.0e5
+damping = 1.0
+friction = 0.0
+[output]
+frame_interval = 1.0e-3
+vtk = false
+"""
+
+
+@pytest.mark.parametrize("integrator", ["explicit", "backward-euler"])
+def test_travel_limit_stops_a_fast_rod_at_a_thin_plate(integrator: str) -> None:
+    """At 10 m/s backward Euler's first step of 1 ms would carry the rod from 6 mm in front of
+    the 2 mm plate to 3 mm behind it, where no contact force acts; the travel limit shortens the
+    steps near the plate and keeps the rod in front (explicit: the step is limited as well)."""
+    from rodnet.run import run
+    import tempfile
+
+    scene = scene_from_toml(PLATE_SHOT.format(integrator=integrator))
+    r = run(scene, tempfile.mkdtemp(), progress=False)
+    assert r.status == "ok", r.message
+    z = r.arrays["positions"][:, :, 2]
+    assert z.max() < 0.006 - 0.001                        # never reached the near face
+    assert (r.arrays["velocities"][-1, :, 2] < 0).all()   # bounced back
+    limit = prepare(scene).model.contact.travel_limit[0]
+    assert r.summary["integrator"]["dt_min"] <= limit / 10.0 * 1.0001

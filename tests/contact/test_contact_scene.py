@@ -1,0 +1,189 @@
+"""[[bodies]] and [contact] in scenes: every bad value is refused with the key, the value and what
+is allowed, before anything is run or written."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+from rodnet.cli import main
+from rodnet.contact.bodies import euler_xyz_matrix
+from rodnet.errors import SceneError
+from rodnet.run import prepare
+from rodnet.scene import load_scene, scene_from_toml
+from tests.conftest import small_net_toml
+
+BODY = """
+[[bodies]]
+name = "target"
+shape = "box"
+size = [1.0, 1.0, 1.0]
+position = [0.0, 0.0, 20.0]
+fixed = true
+"""
+
+
+def with_body(extra: str = "") -> str:
+    return small_net_toml() + BODY + extra
+
+
+BAD = [  # (override, key named in the message, a word of the allowed range)
+    ('bodies[0].shape="cone"', "bodies[0].shape", "one of"),
+    ("bodies[0].size=[1.0, 0.0, 1.0]", "bodies[0].size", "> 0"),
+    ("bodies[0].size=[1.0, -2.0, 1.0]", "bodies[0].size", "> 0"),
+    ("bodies[0].size=[1.0, 1.0]", "bodies[0].size", "3 numbers"),
+    ("bodies[0].mass=0", "bodies[0].mass", "> 0"),
+    ("bodies[0].mass=-5", "bodies[0].mass", "> 0"),
+    ("bodies[0].density=-1", "bodies[0].density", "> 0"),
+    ("bodies[0].fixed=false", "bodies[0].fixed", "free bodies are not supported yet"),
+    ("bodies[0].velocity=[0, 1, 0]", "bodies[0].velocity", "fixed body"),
+    ("bodies[0].angular_velocity_deg=[0, 1, 0]", "bodies[0].angular_velocity_deg", "fixed body"),
+    ('bodies[0].file="target.stl"', "bodies[0].file", 'only read for shape = "mesh"'),
+    ('bodies[0].name=""', "bodies[0].name", "non-empty"),
+    ("bodies[0].colour=1", "bodies[0].colour", "unknown key"),
+    ("contact.friction=-0.1", "contact.friction", ">= 0"),
+    ("contact.stiffness=0", "contact.stiffness", "> 0"),
+    ("contact.damping=-1", "contact.damping", ">= 0"),
+    ("contact.smoothing=-1e-6", "contact.smoothing", ">= 0"),
+    ("contact.slip_velocity=0", "contact.slip_velocity", "> 0"),
+    ("contact.points_per_segment=0", "contact.points_per_segment", "1 .. 64"),
+]
+
+
+@pytest.mark.parametrize("override,key,allowed", BAD)
+def test_bad_body_and_contact_values_are_named(override: str, key: str, allowed: str) -> None:
+    with pytest.raises(SceneError) as info:
+        scene_from_toml(with_body("\n[contact]\nstiffness = 1.0e5\n"), [override])
+    assert info.value.key == key
+    assert allowed in str(info.value)
+
+
+def test_shape_specific_sizes() -> None:
+    for shape, size, word in [("cylinder", "[1.0, 2.0, 3.0]", "[diameter, diameter, length]"),
+                              ("sphere", "[1.0, 1.0, 2.0]", "[diameter, diameter, diameter]")]:
+        with pytest.raises(SceneError, match=word.replace("[", r"\[").replace("]", r"\]")) as info:
+            scene_from_toml(with_body(), [f'bodies[0].shape="{shape}"', f"bodies[0].size={size}"])
+        assert info.value.key == "bodies[0].size"
+    text = with_body().replace("size = [1.0, 1.0, 1.0]\n", "")
+    with pytest.raises(SceneError, match="is required") as info:
+        scene_from_toml(text)
+    assert info.value.key == "bodies[0].size"
+    with pytest.raises(SceneError) as info:
+        scene_from_toml(with_body(), ["bodies[0].mass=10", "bodies[0].density=100"])
+    assert info.value.key == "bodies[0].density"
+
+
+def test_body_names_are_unique() -> None:
+    with pytest.raises(SceneError, match="unique") as info:
+        scene_from_toml(with_body(BODY))
+    assert info.value.key == "bodies[1].name"
+
+
+def mesh_scene(tmp_path: Path, file: str) -> Path:
+    scene = tmp_path / "scene.toml"
+    scene.write_text(small_net_toml() + f'[[bodies]]\nname = "hull"\nshape = "mesh"\nfile = "{file}"\n'
+                     "position = [0.0, 0.0, 20.0]\nfixed = true\n")
+    return scene
+
+
+def test_mesh_file_problems_are_caught_before_the_run(tmp_path: Path) -> None:
+    with pytest.raises(SceneError, match="is required") as info:
+        scene_from_toml(with_body(), ['bodies[0].shape="mesh"', "bodies[0].size=[1, 1, 1]"])
+    assert info.value.key == "bodies[0].size" or info.value.key == "bodies[0].file"
+    # missing
+    with pytest.raises(SceneError, match="no such file") as info:
+        prepare(load_scene(mesh_scene(tmp_path, "nope.stl")))
+    assert info.value.key == "bodies[0].file"
+    # unreadable
+    (tmp_path / "junk.stl").write_text("this is not a mesh\n")
+    with pytest.raises(SceneError) as info:
+        prepare(load_scene(mesh_scene(tmp_path, "junk.stl")))
+    assert info.value.key == "bodies[0].file"
+    # not watertight: a box with one face missing
+    box = trimesh.creation.box()
+    open_box = trimesh.Trimesh(box.vertices, box.faces[:-2], process=False)
+    open_box.export(tmp_path / "open.stl")
+    with pytest.raises(SceneError, match="watertight") as info:
+        prepare(load_scene(mesh_scene(tmp_path, "open.stl")))
+    assert info.value.key == "bodies[0].file"
+    # a good one, found relative to the scene file
+    trimesh.creation.icosphere(radius=0.5).export(tmp_path / "ball.stl")
+    model = prepare(load_scene(mesh_scene(tmp_path, "ball.stl"))).model
+    assert model.contact.kinds == ("mesh",)
+
+
+def test_body_overlapping_the_net_at_the_start_is_refused_naming_body_and_node() -> None:
+    # the packed net is centred on (1, -2, 0.5); knot 12 is its centre
+    text = small_net_toml() + BODY.replace("[0.0, 0.0, 20.0]", "[1.0, -2.0, 0.5]").replace(
+        'name = "target"', 'name = "hull"').replace("[1.0, 1.0, 1.0]", "[0.2, 0.2, 0.2]")
+    with pytest.raises(SceneError) as info:
+        prepare(scene_from_toml(text))
+    message = str(info.value)
+    assert info.value.key == "bodies[0]" and "'hull'" in message
+    assert "node 12 (net:knot:12)" in message and "starts in contact" in message
+
+
+def test_rod_segment_through_a_body_is_refused() -> None:
+    text = """
+[simulation]
+integrator = "explicit"
+[model]
+type = "lumped"
+[[materials]]
+name = "cord"
+density = 1000.0
+youngs_modulus = 1.0e9
+diameter = 2.0e-3
+[[rods]]
+name = "r"
+material = "cord"
+points = [[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]]
+elements = 1
+[[bodies]]
+name = "post"
+shape = "cylinder"
+size = [0.1, 0.1, 1.0]
+fixed = true
+"""
+    with pytest.raises(SceneError, match="a segment from node 0") as info:
+        prepare(scene_from_toml(text))
+    assert info.value.key == "bodies[0]"
+
+
+def test_contact_needs_the_lumped_model_or_cables_and_no_rk45() -> None:
+    with pytest.raises(SceneError, match="cable threads") as info:
+        prepare(scene_from_toml(with_body(), ["model.type=cosserat",
+                                              'simulation.integrator="generalized-alpha"']))
+    assert info.value.key == "bodies"
+    with pytest.raises(SceneError, match="rk45 does not model contact") as info:
+        prepare(scene_from_toml(with_body(), ['simulation.integrator="rk45"']))
+    assert info.value.key == "simulation.integrator"
+    cables = prepare(scene_from_toml(with_body(), ["model.type=cosserat", "model.bending=false",
+                                                   "model.torsion=false"]))
+    assert cables.model.contact.names == ("target",)
+
+
+def test_cli_refuses_a_free_body_and_writes_nothing(tmp_path: Path,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    scene = tmp_path / "scene.toml"
+    scene.write_text(with_body().replace("fixed = true", "fixed = false"))
+    out = tmp_path / "out"
+    assert main(["run", str(scene), "-o", str(out), "--quiet"]) == 2
+    assert not out.exists()
+    err = capsys.readouterr().err
+    assert "bodies[0].fixed" in err and "free bodies are not supported yet" in err
+
+
+def test_contact_defaults_and_orientation() -> None:
+    scene = scene_from_toml(with_body(), ["bodies[0].orientation_deg=[90.0, 0.0, 90.0]"])
+    model = prepare(scene).model
+    law = model.contact.law
+    assert (law.stiffness, law.damping, law.friction) == (1.0e5, 0.0, 0.3)
+    # x then y then z about the fixed axes: x -> y ... R = Rz(90) Rx(90)
+    R, q = euler_xyz_matrix((90.0, 0.0, 90.0))
+    np.testing.assert_allclose(R, [[0, 0, 1], [1, 0, 0], [0, 1, 0]], atol=1e-15)
+    np.testing.assert_allclose(model.contact.rotation[0], R)
+    np.testing.assert_allclose(np.linalg.norm(q), 1.0)
