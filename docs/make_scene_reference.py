@@ -40,10 +40,20 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
     "simulation.adaptive": (
         "", "Explicit integrator: `true` sets the step to `explicit_safety` times the stability "
         "limit (S10) of the scene, computed once before the run; `false` uses `dt`. Implicit "
-        "integrators: `true` halves the step when Newton's method fails and grows it by a quarter "
-        "after two steps in a row that each converged within four iterations, up to `dt_max`; "
+        "integrators: `true` halves the step when Newton's method fails; with `error_tolerance` "
+        "set, generalized-alpha and midpoint also resize every step from a local error estimate "
+        "(and reject a step above the tolerance), otherwise the step grows by a quarter after two "
+        "steps in a row that each converged within four iterations; always up to `dt_max`. "
         "`false` keeps `dt`, and a step whose Newton solve fails ends the run. Not used by "
         "`rk45`, which controls its step with `rtol`."),
+    "simulation.error_tolerance": (
+        "m", "> 0. Implicit generalized-alpha and midpoint with `adaptive = true`: the largest "
+        "estimated local error of any node position per step (Zienkiewicz-Xie estimate "
+        "`|beta - 1/6| dt^2 |a1 - a0|`, midpoint `dt^2 |a1 - a0| / 12`). A step above it is "
+        "rejected; every step is resized by `0.9 (tolerance / error)^(1/3)`, within 0.2 to 2. "
+        "Not set: no error control, the step follows Newton's convergence only (fast, but not "
+        "accuracy-controlled). Measured on the 1.5 m thread of the benchmark: 1e-5 m gives a "
+        "tip error of 0.9 mm, 1e-6 m 0.23 mm. Not used by backward Euler, `explicit`, `rk45`."),
     "simulation.integrator": (
         "", 'Not set: "explicit" for `model.type = "lumped"`, "generalized-alpha" otherwise. '
         '"generalized-alpha": implicit, second order, numerical dissipation set by `rho_inf`. '
@@ -115,6 +125,15 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
         "-", "Kink strain `delta` of the C1 ramp that smooths the tension-only law at `e = 0` "
         "(S4), in [0, 0.01); 0 gives the sharp kink. Above `delta` the force is `EA delta / 2` "
         "lower than the linear law's."),
+    "model.shear_correction": (
+        "", '`model.type = "cosserat"` rods and threads: "none" uses the section\'s `GA`. '
+        '"residual-bending" uses `1 / (1/GA + Le^2 / (12 EI))` per bending plane (C44, MacNeal): '
+        "one element is then exact for a straight beam under end loads (a cantilever deflects "
+        "by `P L^3 / (3 EI) + P L / GA`, not `P L^3 / (4 EI) + P L / GA`); the same limit as the "
+        "mesh is refined. An element so corrected keeps its triad on its chord only while its "
+        "axial force stays below about `12 EI / Le^2` (C45; 0.17 N for a 1 mm Kevlar thread in "
+        "0.5 m elements), so threads in tension stop pulling: keep \"none\" for nets. See "
+        "[the rod model](rod_model.md#shear-correction). No effect on cables and the lumped model."),
     # [[materials]]
     "materials.name": (
         "", "Unique, non-empty; named by `net.material` and `rods.material`."),
@@ -215,6 +234,68 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
     "masses.mass": ("kg", "Point mass added at the node, > 0 (no rotary inertia)."),
     "masses.velocity": (
         "m/s", "Initial velocity of that node, replacing the rod's or net's; not set: unchanged."),
+    # [[bodies]]
+    "bodies.name": (
+        "", "Unique, non-empty, without \":\". Names the body in messages and in the results "
+        "(`body_names`, `summary.json` `bodies`)."),
+    "bodies.shape": (
+        "", '"box", "cylinder" (axis along the body z axis), "sphere", or "mesh" (a closed '
+        "triangle mesh read from `file`). See [contact](contact.md)."),
+    "bodies.size": (
+        "m", "Box: the three edge lengths; cylinder: `[diameter, diameter, length]`; sphere: "
+        '`[diameter, diameter, diameter]`; all > 0. Required for the primitives, not allowed '
+        'for "mesh".'),
+    "bodies.file": (
+        "", 'shape = "mesh" only, and required there: any format trimesh reads (STL, OBJ, PLY, '
+        "GLB ...), relative to the scene file. The mesh must be watertight and consistently "
+        "oriented (checked before the run; inward-facing meshes are flipped); it is translated "
+        "so that its centre of volume is the body origin."),
+    "bodies.mass": (
+        "kg", "> 0; give this or `density`, not both. Not used by fixed bodies (reported only)."),
+    "bodies.density": (
+        "kg/m^3", "> 0; the mass is `density` x the shape's volume. Not used by fixed bodies."),
+    "bodies.position": ("m", "World position of the body origin (its centre of mass)."),
+    "bodies.orientation_deg": (
+        "deg", "Rotations about the fixed world x, y and z axes, applied in that order "
+        "(`R = R_z R_y R_x`); `R` maps body axes to world axes."),
+    "bodies.velocity": (
+        "m/s", "Initial velocity of the body; must be `[0, 0, 0]` while bodies are fixed."),
+    "bodies.angular_velocity_deg": (
+        "deg/s", "Initial angular velocity in body axes; must be `[0, 0, 0]` while bodies are "
+        "fixed."),
+    "bodies.fixed": (
+        "", "`true`: the body is held in place and never moves (its pose is constant in the "
+        "results). This version supports fixed bodies only: `false` (the default, a free "
+        "6-DOF body) is refused with an error. Contact with bodies needs the lumped model or "
+        "cable threads and an `explicit` or implicit integrator (not `rk45`); a body that "
+        "touches a thread at the start is refused, naming the first node inside it."),
+    # [contact]
+    "contact.stiffness": (
+        "N/m", "Penalty stiffness `k` > 0 per contact point: `N = k delta` at a penetration "
+        "`delta` of the thread surface into the body (N1)-(N3). Choose `k >= W / delta_allow` for "
+        "a steady load `W` and `k >= m v^2 / delta_allow^2` for a point of mass `m` hitting at "
+        "`v`, with `delta_allow` below the thread radius. Enters the explicit stability limit. "
+        "See [contact](contact.md#parameters)."),
+    "contact.damping": (
+        "N s/m", ">= 0. Normal damping `c`, acting only in contact and fading in with it; the "
+        "total normal force never pulls (N3). Critical for a point of mass `m`: `2 sqrt(k m)`. "
+        "Enters the explicit stability limit."),
+    "contact.friction": (
+        "-", "Coulomb coefficient `mu` >= 0 of velocity-regularised friction "
+        "`f_T = -mu N v_T / sqrt(|v_T|^2 + slip_velocity^2)` (F2); 0: frictionless."),
+    "contact.smoothing": (
+        "m", ">= 0. Half-width `s` of the C1 blend of the normal law around first touch (N1): "
+        "the force starts at a gap `s` and is exactly `k delta` beyond `delta = s`. About a "
+        "tenth of the admissible penetration; larger values calm implicit integrators at steps "
+        "that do not resolve the contact frequency."),
+    "contact.slip_velocity": (
+        "m/s", "> 0. Regularisation `eps_v` of friction (F2): below it sticking is a creep; at "
+        "a slip speed `v` friction is `mu N (1 - eps_v^2 / (2 v^2))`. Well below the sliding "
+        "speeds of interest."),
+    "contact.points_per_segment": (
+        "", "1 to 64. Contact is checked at every node and at `points_per_segment - 1` equally "
+        "spaced points inside each segment near a body (B2); the point spacing should not "
+        "exceed the smallest body feature that matters (an edge can pass between two points)."),
     # [output]
     "output.directory": (
         "", "Output directory, relative to the working directory; `-o DIR` on the command line "
@@ -251,13 +332,15 @@ entry for every material they name; the other sections may be left out.
 
 Equation numbers (S1)-(S10) refer to
 [elements/spring/FORMULATION.md](../elements/spring/FORMULATION.md), (C1)-(C38) to
-[elements/cosserat/FORMULATION.md](../elements/cosserat/FORMULATION.md). "Cosserat rods" below
+[elements/cosserat/FORMULATION.md](../elements/cosserat/FORMULATION.md), (N1)-(N3), (F2) and
+(B2) to [elements/contact/FORMULATION.md](../elements/contact/FORMULATION.md). "Cosserat rods" below
 means `model.type = "cosserat"` with `bending` or `torsion` on; "cable threads" means
 `model.type = "cosserat"` with both off, which runs the lumped model's equations.
 
-Not in this version: the sections `[[bodies]]` (rigid bodies) and `[contact]` are refused with
-an error. Keys that only one model or one kind of run uses are read and checked by all; the
-descriptions say where a key has no effect.
+Rigid bodies (`[[bodies]]`) must be `fixed = true` in this version, and contact with them
+(`[contact]`) is modelled for the lumped model and cable threads; see [contact](contact.md).
+Keys that only one model or one kind of run uses are read and checked by all; the descriptions
+say where a key has no effect.
 """
 
 

@@ -1,4 +1,5 @@
-"""The ``rodnet`` command: ``run`` a scene file, ``demo`` the reference deployment."""
+"""The ``rodnet`` command: ``run`` a scene file, ``demo`` the reference deployment, ``validate``
+the validation cases, ``bench`` the work-precision study of the reference deployment."""
 
 from __future__ import annotations
 
@@ -25,6 +26,14 @@ def _parser() -> argparse.ArgumentParser:
     val.add_argument("--fast", action="store_true", help="skip the cases marked slow")
     val.add_argument("--no-tests", action="store_true",
                      help="do not run the slow validation tests (pytest -m slow tests/validation)")
+    ben = sub.add_parser("bench", help="work-precision study of the reference deployment "
+                         "(long: hours; --quick: a small net in a few minutes)")
+    ben.add_argument("-o", "--output", type=Path, default=Path("bench"),
+                     help="folder of the tables, plot and stored runs (default: bench); runs "
+                     "already stored there are not run again")
+    ben.add_argument("--quick", action="store_true", help="a 5 x 5 net for 1 s")
+    ben.add_argument("--only", default=None, metavar="TEXT",
+                     help="only the models whose name contains TEXT (plus the references)")
     for p in (run, demo):
         p.add_argument("-o", "--output", type=Path, default=None,
                        help="output directory (default: the scene's output.directory)")
@@ -52,6 +61,11 @@ def main(argv: list[str] | None = None) -> int:
             done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-m", "slow", "tests/validation"])
             status = status or (0 if done.returncode in (0, 5) else EXIT_FAILED)
         return status
+    if args.command == "bench":
+        from rodnet.bench import bench
+
+        print(bench(args.output, args.quick, args.only))
+        return 0
     from rodnet.errors import SceneError
     from rodnet.scene import load_scene, scene_from_toml
 

@@ -57,15 +57,21 @@ class SimulationSpec:
     rtol: float = 1.0e-6
     reuse_factorization: bool = False
     dt_max: float | None = None
+    error_tolerance: float | None = None
 
     def __post_init__(self) -> None:
-        _positive(self, "duration", "dt", "rtol", "dt_max")
+        _positive(self, "duration", "dt", "rtol", "dt_max", "error_tolerance")
         require(0.0 <= self.rho_inf <= 1.0, "rho_inf", self.rho_inf, "must be in [0, 1]")
         require(self.load_steps >= 1, "load_steps", self.load_steps, "must be an integer >= 1")
         require(0.0 < self.explicit_safety <= 1.0, "explicit_safety", self.explicit_safety,
                 "must be in (0, 1]: the fraction of the explicit stability limit used as step")
         require(self.rtol < 1.0, "rtol", self.rtol, "must be < 1 (a relative tolerance)")
         _finite_vector(self, "gravity")
+
+
+SHEAR_CORRECTIONS = ("none", "residual-bending")
+"""Values of ``model.shear_correction``: the rod element's shear stiffness as given, or lowered by
+the residual bending flexibility of the element (FORMULATION.md, C44)."""
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -79,10 +85,13 @@ class ModelSpec:
     axial: Literal["tension-only", "linear"] = "tension-only"
     knots: Literal["rigid", "pinned"] = "rigid"
     kink_strain: float = 1.0e-6
+    shear_correction: Literal["none", "residual-bending"] = "none"
 
     def __post_init__(self) -> None:
         require(self.elements_per_thread >= 1, "elements_per_thread", self.elements_per_thread,
                 "must be an integer >= 1")
+        require(self.shear_correction in SHEAR_CORRECTIONS, "shear_correction",
+                self.shear_correction, f"must be one of {list(SHEAR_CORRECTIONS)}")
         require(0.0 <= self.kink_strain < 1e-2, "kink_strain", self.kink_strain,
                 "must be in [0, 0.01): the strain over which the tension-only law is smoothed")
 
@@ -292,6 +301,80 @@ class MassSpec:
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
+class BodySpec:
+    """``[[bodies]]``: a rigid body the threads touch; this version holds every body fixed."""
+
+    name: str
+    shape: Literal["box", "cylinder", "sphere", "mesh"]
+    size: Vec3 | None = None
+    file: str | None = None
+    mass: float | None = None
+    density: float | None = None
+    position: Vec3 = (0.0, 0.0, 0.0)
+    orientation_deg: Vec3 = (0.0, 0.0, 0.0)
+    velocity: Vec3 = (0.0, 0.0, 0.0)
+    angular_velocity_deg: Vec3 = (0.0, 0.0, 0.0)
+    fixed: bool = False
+
+    def __post_init__(self) -> None:
+        require(self.name != "" and ":" not in self.name, "name", self.name,
+                "must be a non-empty string without ':'")
+        if self.shape == "mesh":
+            require(self.file is not None and self.file != "", "file", self.file,
+                    'is required for shape = "mesh": a triangle mesh file (STL, OBJ, PLY ...), '
+                    "relative to the scene file")
+            require(self.size is None, "size", self.size,
+                    'must not be given for shape = "mesh": the file gives the size')
+        else:
+            require(self.file is None, "file", self.file,
+                    f'is only read for shape = "mesh", not "{self.shape}"')
+            self._check_size()
+        _positive(self, "mass", "density")
+        require(self.mass is None or self.density is None, "density", self.density,
+                "give either mass or density, not both")
+        _finite_vector(self, "position", "orientation_deg", "velocity", "angular_velocity_deg")
+        require(self.fixed, "fixed", self.fixed, "free bodies are not supported yet: set "
+                "fixed = true (the body is held in place; free 6-DOF bodies come later)")
+        require(not any(self.velocity), "velocity", self.velocity,
+                "must be [0, 0, 0] for a fixed body")
+        require(not any(self.angular_velocity_deg), "angular_velocity_deg",
+                self.angular_velocity_deg, "must be [0, 0, 0] for a fixed body")
+
+    def _check_size(self) -> None:
+        size = self.size
+        require(size is not None, "size", size, f'is required for shape = "{self.shape}": '
+                "box [length_x, length_y, length_z], cylinder [diameter, diameter, length], "
+                "sphere [diameter, diameter, diameter], in metres")
+        assert size is not None
+        require(all(math.isfinite(v) and v > 0.0 for v in size), "size", size,
+                "must hold three finite lengths > 0 [m]")
+        if self.shape == "cylinder":
+            require(size[0] == size[1], "size", size,
+                    "a cylinder is [diameter, diameter, length] (axis along the body z axis)")
+        elif self.shape == "sphere":
+            require(size[0] == size[1] == size[2], "size", size,
+                    "a sphere is [diameter, diameter, diameter]")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ContactSpec:
+    """``[contact]``: the penalty contact law between thread points and bodies."""
+
+    stiffness: float = 1.0e5
+    damping: float = 0.0
+    friction: float = 0.3
+    smoothing: float = 1.0e-6
+    slip_velocity: float = 1.0e-3
+    points_per_segment: int = 2
+
+    def __post_init__(self) -> None:
+        _positive(self, "stiffness", "slip_velocity")
+        _non_negative(self, "damping", "friction", "smoothing")
+        require(1 <= self.points_per_segment <= 64, "points_per_segment", self.points_per_segment,
+                "must be an integer in 1 .. 64")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
 class OutputSpec:
     """``[output]``: where results go and which ones are written."""
 
@@ -318,6 +401,8 @@ class Scene:
     supports: tuple[SupportSpec, ...] = ()
     loads: tuple[LoadSpec, ...] = ()
     masses: tuple[MassSpec, ...] = ()
+    bodies: tuple[BodySpec, ...] = ()
+    contact: ContactSpec | None = None
     output: OutputSpec = field(default_factory=OutputSpec)
     source: str = "<scene>"
 
@@ -335,6 +420,9 @@ class Scene:
                     "must be unique and not 'net'")
         require(self.net is not None or len(self.rods) > 0, "net", None,
                 "a scene needs a [net] or at least one [[rods]]")
+        body_names = [b.name for b in self.bodies]
+        for i, name in enumerate(body_names):
+            require(body_names.index(name) == i, f"bodies[{i}].name", name, "must be unique")
 
     @property
     def integrator(self) -> str:

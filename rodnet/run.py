@@ -17,6 +17,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rodnet.config import Scene
+from rodnet.contact.bodies import check_contact_supported
+from rodnet.contact.output import ContactLog, body_surfaces
 from rodnet.errors import SceneError, SimulationFailed
 from rodnet.integrate.frames import StepStats, frame_times
 from rodnet.io.results import scene_as_dict, write_npz, write_summary
@@ -52,6 +54,7 @@ def prepare(scene: Scene) -> Prepared:
     sim, integrator = scene.simulation, scene.integrator
     structure = build_structure(scene)
     rods_mode = scene.model.type == "cosserat" and (scene.model.bending or scene.model.torsion)
+    check_contact_supported(scene)
     if rods_mode:
         model, q0, v0 = build_cosserat(scene, structure)
         if integrator in LUMPED_ONLY and sim.type == "dynamic":
@@ -101,6 +104,14 @@ def _check_supported(model: Any, q0: Any, supports: list[str]) -> None:
                          "a thread at rest has no axial stiffness at all: use 'linear' for structures")
 
 
+def _kinetic_and_elastic(model: Any, q: Any, v: NDArray[np.float64], t: float) -> tuple[float, float]:
+    """Kinetic (translational and rotational) and elastic energy [J] of a frame."""
+    if isinstance(q, np.ndarray):  # the lumped model: implicit integrators pass flat velocities
+        q, v = q.reshape(-1, 3), v.reshape(-1, 3)
+    energy = model.energy(q, v, t)
+    return energy["kinetic"], energy["elastic"]
+
+
 @dataclass
 class Recorder:
     """Keeps every frame in memory and streams it to VTK when asked."""
@@ -108,26 +119,49 @@ class Recorder:
     model: Any
     vtk: VtkSeries | None
     skip_first: bool = False
+    energy_guard: bool = False
+    """Stop the run when the energy grows: only for scenes with nothing that does work on them
+    (no gravity, no loads), whose kinetic plus elastic energy can only fall."""
     time: list[float] = field(default_factory=list)
     frames: list[dict[str, NDArray[np.float64]]] = field(default_factory=list)
+
+    ENERGY_GROWTH = 0.1
+    """The guard's threshold: a rise above the start energy by this fraction of it."""
 
     def __call__(self, t: float, q: Any, v: NDArray[np.float64]) -> None:
         if self.skip_first:  # a static run's unloaded start is not a load step
             self.skip_first = False
             return
         frame = self.model.frame_arrays(q, v)
+        frame["kinetic_energy"], frame["elastic_energy"] = _kinetic_and_elastic(self.model, q, v, t)
         self.time.append(t)
         self.frames.append(frame)
         if self.vtk is not None:
             self.vtk.write(t, frame)
+        if self.energy_guard:
+            self._check_energy(t)
+
+    def _check_energy(self, t: float) -> None:
+        """Raise :class:`SimulationFailed` when the energy exceeds its start value by more than
+        ``ENERGY_GROWTH`` of it (the frame is kept: it shows the growth)."""
+        start = self.frames[0]["kinetic_energy"] + self.frames[0]["elastic_energy"]
+        now = self.frames[-1]["kinetic_energy"] + self.frames[-1]["elastic_energy"]
+        if not np.isfinite(now):
+            raise SimulationFailed(f"the state became non-finite (NaN or inf) by t = {t:.6g} s")
+        if now > start * (1.0 + self.ENERGY_GROWTH) and now - start > 1e-9:
+            raise SimulationFailed(
+                f"the energy grew from {start:.6g} J to {now:.6g} J by t = {t:.6g} s although "
+                "nothing does work on the structure: the time integration is unstable at this "
+                "step; reduce simulation.dt or set simulation.adaptive = true")
 
     def arrays(self, structure: Structure) -> dict[str, NDArray[Any]]:
-        """``time`` (F,), ``positions`` and ``velocities`` (F, N, 3), ``tension`` (F, E), rods
-        also ``rotations`` (F, N, 4), ``curvature`` and ``twist`` (F, E); ``segments`` (E, 2)."""
+        """``time``, ``kinetic_energy`` and ``elastic_energy`` (F,), ``positions`` and
+        ``velocities`` (F, N, 3), ``tension`` (F, E), rods also ``rotations`` (F, N, 4),
+        ``curvature`` and ``twist`` (F, E); ``segments`` (E, 2)."""
         n, e = structure.n_nodes, len(structure.segments)
         out: dict[str, NDArray[Any]] = {"time": np.array(self.time)}
         shapes = {"positions": (n, 3), "velocities": (n, 3), "rotations": (n, 4), "tension": (e,),
-                  "curvature": (e,), "twist": (e,)}
+                  "curvature": (e,), "twist": (e,), "kinetic_energy": (), "elastic_energy": ()}
         keys = self.frames[0].keys() if self.frames else ("positions", "velocities", "tension")
         for key in keys:
             out[key] = np.array([f[key] for f in self.frames]).reshape(-1, *shapes[key])
@@ -160,13 +194,18 @@ def run(scene: Scene, directory: str | Path | None = None, *, progress: bool | N
     prepared = prepare(scene)
     out = Path(directory if directory is not None else scene.output.directory)
     out.mkdir(parents=True, exist_ok=True)
-    vtk = VtkSeries(out, prepared.structure.segments) if scene.output.vtk else None
-    recorder = Recorder(prepared.model, vtk, skip_first=scene.simulation.type == "static")
+    vtk = VtkSeries(out, prepared.structure.segments, body_surfaces(prepared.model)) \
+        if scene.output.vtk else None
+    unloaded = not any(scene.simulation.gravity) and not scene.loads
+    recorder = Recorder(prepared.model, vtk, skip_first=scene.simulation.type == "static",
+                        energy_guard=unloaded and scene.simulation.type == "dynamic")
     bar = Progress(scene.simulation.duration, enabled=progress)
     status, message, stats = "ok", "", StepStats()
+    contact = getattr(prepared.model, "contact", None)
+    log = ContactLog(contact, recorder, stats) if contact is not None else None
     start = time.perf_counter()
     try:
-        stats = _integrate(prepared, recorder, bar, stats)
+        stats = _integrate(prepared, log or recorder, bar, stats)
     except SimulationFailed as exc:
         status, message = "failed", str(exc)
     except KeyboardInterrupt:
@@ -176,6 +215,8 @@ def run(scene: Scene, directory: str | Path | None = None, *, progress: bool | N
         wall = time.perf_counter() - start
         arrays = recorder.arrays(prepared.structure)
         summary = _summary(prepared, arrays, stats, status, message, wall)
+        if log is not None:
+            log.add_results(arrays, summary)
         write_npz(out / "result.npz", arrays)
         write_summary(out / "summary.json", summary)
     result = RunResult(status, message, out, summary, arrays)
@@ -200,7 +241,7 @@ def _integrate(p: Prepared, recorder: Recorder, bar: Progress, stats: StepStats)
         return integrate_explicit(p.model, p.q0, p.v0, p.times, p.dt, recorder, bar, stats=stats)
     stepper = Stepper(p.model, p.scene.integrator, sim.rho_inf, options)
     return integrate_implicit(stepper, p.q0, p.v0, p.times, p.dt, sim.adaptive, recorder, bar,
-                              dt_max=sim.dt_max, stats=stats)
+                              dt_max=sim.dt_max, error_tolerance=sim.error_tolerance, stats=stats)
 
 
 def _summary(p: Prepared, arrays: dict[str, NDArray[Any]], stats: StepStats, status: str,

@@ -112,6 +112,11 @@ class Stepper:
         n = s.n_dof
 
         cache: dict[str, Any] = {}
+        if self.scheme != "backward-euler":
+            # a, v and dq are affine in the unknown vd: their parts known at the start of the step
+            a_known = (af * state.vd - am * state.a) / (1.0 - am)
+            v_known = state.v + h * (1.0 - gamma) * state.a
+            dq_known = h * state.v + h * h * (0.5 - beta) * state.a
 
         def unpack(u: FloatArray) -> tuple[MotionState, FloatArray]:
             """The state at the end of the step for unknown ``u``, and the increment dq."""
@@ -125,23 +130,30 @@ class Stepper:
             else:
                 vd = np.zeros(n)
                 vd[free] = u
-                a = (af * state.vd - am * state.a + (1.0 - af) * vd) / (1.0 - am)
-                v = state.v + h * (1.0 - gamma) * state.a + h * gamma * a
-                dq = h * (state.v + h * (0.5 - beta) * state.a + h * beta * a)
+                a = a_known + ((1.0 - af) / (1.0 - am)) * vd
+                v = v_known + (h * gamma) * a
+                dq = dq_known + (h * h * beta) * a
             new = MotionState(s.retract(state.q, dq), v, vd, a, state.vd)
             cache.update(u=u.copy(), state=new, dq=dq)
             return new, dq
 
-        def evaluate(u: FloatArray, need_matrix: bool) -> tuple[FloatArray, sp.csr_matrix | None]:
+        # iteration matrix diag(inertia) + weight_C C + weight_K K T(dq)
+        if self.scheme == "backward-euler":
+            inertia, weight_C, weight_K = M / h, 1.0, h
+        else:
+            inertia, weight_C, weight_K = M, h * gamma * c, h * h * beta * c
+        # a model that assembles the iteration matrix itself skips the global K and C
+        fused = getattr(s, "iteration_matrix", None)
+
+        def evaluate(u: FloatArray, need_matrix: bool) -> tuple[FloatArray, Any]:
             new, dq = unpack(u)
             if not need_matrix:
                 return M * new.vd[free] + s.generalized_force(new.q, new.v, t + h)[free], None
-            g, K, C = s.tangents(new.q, new.v, t + h)
-            KT = _times_tangent_operator(s, K, dq)
-            if self.scheme == "backward-euler":
-                S = _combine(M / h, 1.0, C, h, KT)
+            if fused is not None:
+                g, S = fused(new.q, new.v, t + h, dq, inertia, weight_C, weight_K)
             else:
-                S = _combine(M, h * gamma * c, C, h * h * beta * c, KT)
+                g, K, C = s.tangents(new.q, new.v, t + h)
+                S = _combine(inertia, weight_C, C, weight_K, _times_tangent_operator(s, K, dq))
             return M * new.vd[free] + g[free], S
 
         reduced_rot, free_trans = self._layout()
@@ -153,17 +165,19 @@ class Stepper:
         def start(vd_guess: FloatArray) -> FloatArray:
             return (state.v + h * vd_guess)[free] if self.scheme == "backward-euler" else vd_guess[free]
         # at the converged previous step M vd = -g, so |M vd| measures the forces acting
-        scale = max(float(np.max(np.abs(M * state.vd[free]), initial=0.0)), 1e-2 * s.force_scale)
+        scale = max(float(np.abs(M * state.vd[free]).max(initial=0.0)), 1e-2 * s.force_scale)
         def active_set(u: FloatArray) -> int:
             new, _ = unpack(u)
             return s.active_set(new.q, new.v)
 
         length = s.length_scale
+        reduced_trans = np.flatnonzero(free_trans)
 
         def increment_small(du: FloatArray) -> bool:
-            move = d_increment * np.abs(du)
-            return bool(np.max(move[free_trans], initial=0.0) <= self.options.xtol * length
-                        and np.max(move[~free_trans], initial=0.0) <= self.options.xtol)
+            return bool(d_increment * np.abs(du[reduced_trans]).max(initial=0.0)
+                        <= self.options.xtol * length
+                        and d_increment * np.abs(du[reduced_rot]).max(initial=0.0)
+                        <= self.options.xtol)
 
         # predictor: the acceleration extrapolated linearly from the last two steps, which saves
         # iterations on smooth motion; the constant-acceleration predictor when that fails
@@ -175,6 +189,26 @@ class Stepper:
             if result.converged:
                 break
         return unpack(result.u)[0], result
+
+    def local_error(self, old: MotionState, new: MotionState, h: float) -> float:
+        """Estimated local error [m] of the positions over the step from ``old`` to ``new``:
+        the largest over the free translational DOFs, or nan for a scheme without an estimate.
+
+        Generalized-alpha: ``|beta - 1/6| h^2 |a1 - a0|`` (Zienkiewicz and Xie 1991), the
+        leading term of the position update's truncation error, with the algorithmic
+        accelerations; midpoint (trapezoidal positions): ``h^2 |vd1 - vd0| / 12``. Backward
+        Euler's error is first order in the acceleration itself and is not estimated.
+        Rotations are left out: their stiff, unresolved modes carry little of the motion.
+        """
+        _, free_trans = self._layout()
+        free = self.system.free
+        if self.scheme == "generalized-alpha":
+            factor, change = abs(chung_hulbert(self.rho_inf)[3] - 1.0 / 6.0), new.a - old.a
+        elif self.scheme == "midpoint":
+            factor, change = 1.0 / 12.0, new.vd - old.vd
+        else:
+            return float("nan")
+        return factor * h * h * float(np.max(np.abs(change[free][free_trans]), initial=0.0))
 
     def _step_midpoint(self, state: MotionState, t: float,
                        h: float) -> tuple[MotionState, NewtonResult]:
@@ -314,13 +348,17 @@ def _times_tangent_operator(system: System, K: sp.csr_matrix, dq: FloatArray) ->
 def integrate_implicit(stepper: Stepper, q0: Any, v0: FloatArray, times: NDArray[np.float64],
                        dt: float, adaptive: bool, on_frame: FrameSink,
                        on_progress: ProgressSink | None = None, dt_max: float | None = None,
-                       min_dt: float = 1e-12,
+                       min_dt: float = 1e-12, error_tolerance: float | None = None,
                        stats: StepStats | None = None) -> StepStats:
     """March from ``times[0]`` to ``times[-1]`` landing on every frame time.
 
-    Adaptive: a step whose Newton solve fails is retried with half the step; after two steps
-    in a row that each converged within four iterations the step grows by a quarter, up to
-    ``dt_max`` (default: the interval between saved frames).
+    Adaptive: a step whose Newton solve fails is retried with half the step. With an
+    ``error_tolerance`` [m] and a scheme that estimates its local error
+    (:meth:`Stepper.local_error`), a step whose estimate exceeds the tolerance is rejected and
+    every step is resized by ``0.9 (tolerance / error)^(1/3)`` (within 0.2 ... 2; no growth after
+    a Newton solve of more than six iterations). Otherwise, after two steps in a row that each
+    converged within four iterations the step grows by a quarter. Either way the step stays
+    below ``dt_max`` (default: the interval between saved frames).
 
     Raises
     ------
@@ -331,8 +369,12 @@ def integrate_implicit(stepper: Stepper, q0: Any, v0: FloatArray, times: NDArray
     state = stepper.initial(q0, v0, float(times[0]))
     on_frame(float(times[0]), state.q, state.v)
     t, h, easy = float(times[0]), dt, 0
+    controlled = adaptive and error_tolerance is not None
     frame_gap = float(np.diff(times).max(initial=dt))
     dt_max = max(dt, frame_gap) if dt_max is None else max(dt, dt_max)
+    # optional contact hooks: travel of points near bodies per step, work done by each step
+    step_travel = getattr(stepper.system, "step_travel", None)
+    after_step = getattr(stepper.system, "after_step", None)
     for t_frame in times[1:]:
         while t < t_frame - 1e-12 * max(1.0, abs(t_frame)):
             h_try = min(h, t_frame - t)
@@ -348,15 +390,49 @@ def integrate_implicit(stepper: Stepper, q0: Any, v0: FloatArray, times: NDArray
                                                "simulation.adaptive = true"))
                 h, easy = h_try / 2, 0
                 continue
+            travel = step_travel(state.q, new.q) if step_travel is not None else 0.0
+            if travel > 1.0:  # a point near a body moved too far: it could pass through it
+                stats.rejected_steps += 1
+                h, easy = 0.9 * h_try / travel, 0
+                if h < min_dt:
+                    raise SimulationFailed(f"the step fell below {min_dt:.3g} s at t = {t:.6g} s "
+                                           "to keep thread points near a body within their "
+                                           "travel limit")
+                continue
+            error = stepper.local_error(state, new, h_try) if controlled else float("nan")
+            if controlled and np.isfinite(error):
+                factor = _resize_factor(error, error_tolerance, result.iterations)  # type: ignore[arg-type]
+                if error > error_tolerance:  # type: ignore[operator]
+                    stats.rejected_steps += 1
+                    if h_try * factor < min_dt:
+                        raise SimulationFailed(
+                            f"the step fell below {min_dt:.3g} s at t = {t:.6g} s: the local "
+                            f"error estimate {error:.3g} m stays above simulation.error_tolerance")
+                    h = h_try * factor
+                    continue
+                # a step cut short to land on a frame does not shrink the next one
+                h = min(max(h_try * factor, h if h_try < h and factor >= 1.0 else 0.0), dt_max)
             state, t = new, t + h_try
             stats.record_step(h_try)
-            easy = easy + 1 if result.iterations <= 4 else 0
-            if adaptive and easy >= 2 and h_try == h:
-                h, easy = min(1.25 * h, dt_max), 0
+            if after_step is not None:
+                after_step(state.q, state.v, h_try, stats)
+            if adaptive and not (controlled and np.isfinite(error)):  # growth on easy Newton
+                easy = easy + 1 if result.iterations <= 4 else 0
+                if easy >= 2 and h_try == h:
+                    h, easy = min(1.25 * h, dt_max), 0
             if on_progress is not None:
                 on_progress(t, h_try, stats)
         on_frame(float(t_frame), state.q, state.v)
     return stats
+
+
+def _resize_factor(error: float, tolerance: float, iterations: int) -> float:
+    """Step-size factor from the local error estimate of a second-order scheme: the error
+    scales as h^3, so ``0.9 (tolerance / error)^(1/3)``, within 0.2 ... 2, and at most 1 when
+    Newton needed more than six iterations."""
+    factor = 2.0 if error <= 0.0 else 0.9 * (tolerance / error) ** (1.0 / 3.0)
+    factor = min(2.0, max(0.2, factor))
+    return min(factor, 1.0) if iterations > 6 else factor
 
 
 def solve_static(system: System, q0: Any, load_steps: int, options: NewtonOptions,

@@ -1,0 +1,310 @@
+"""``rodnet bench``: the work-precision study of the reference deployment.
+
+Every run is the built-in reference deployment (``rodnet demo``) with a few ``--set``-style
+overrides, executed in its own process so that its peak memory is its own. A run records its
+wall time, steps, Newton iterations, factorisations and peak memory, and the deployment measures
+of :mod:`rodnet.metrics`. Errors are taken against the reference run of the run's *family*
+(runs that model the same physics: threads without bending, threads with bending): the finest
+run of that family, named in the table.
+
+Error measures (all against the family's reference):
+
+- ``max_mouth_area``: relative error of the largest mouth area;
+- ``time_of_max``: absolute error [s] of its time;
+- ``distance_at_max``: absolute error [m] of the distance travelled at that time;
+- ``com_path``: largest difference [m] of the net's centre-of-mass distance over all frames.
+
+Outputs in the chosen folder: ``work_precision.md`` (Markdown table), ``work_precision.csv``,
+``work_precision.png`` (wall time against the max-mouth-area error, one curve per model) and
+``runs/<label>.json`` with every run's summary (a rerun skips runs already there, so an
+interrupted study loses nothing).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import re
+import signal
+import subprocess
+import sys
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+CHILD = r"""
+import json, resource, sys, time
+start = time.perf_counter()
+import numpy as np
+from rodnet.cli import demo_scene_text
+from rodnet.run import run
+from rodnet.scene import scene_from_toml
+overrides = json.loads(sys.argv[1]) + ["output.vtk=false", "output.picture=false", "output.plot=false"]
+r = run(scene_from_toml(demo_scene_text(), overrides), sys.argv[2], progress=False)
+keys = ("status", "message", "wall_time_s", "steps", "newton_iterations", "factorizations",
+        "rejected_steps", "metrics", "simulated_time_s")
+series = {k: r.arrays[k].tolist() for k in ("time", "mouth_area", "distance", "kinetic_energy", "elastic_energy") if k in r.arrays}
+print(json.dumps({"summary": {k: r.summary.get(k) for k in keys}, "series": series,
+                  "process_wall_s": time.perf_counter() - start,
+                  "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
+"""
+
+
+@dataclass(frozen=True)
+class BenchRun:
+    """One run of the study.
+
+    Attributes
+    ----------
+    curve : str
+        The model it belongs to in the plot, e.g. ``"cosserat n=2"``.
+    setting : str
+        What varies along the curve, e.g. ``"tol 1e-4"``.
+    family : str
+        Runs of one family model the same physics and share a reference.
+    overrides : tuple of str
+        ``key=value`` overrides of the reference deployment.
+    """
+
+    curve: str
+    setting: str
+    family: str
+    overrides: tuple[str, ...]
+
+    @property
+    def label(self) -> str:
+        return re.sub(r"[^A-Za-z0-9.=-]+", "_", f"{self.curve} {self.setting}").strip("_")
+
+
+@dataclass
+class Study:
+    """Runs and, per family, the label of its reference run."""
+
+    runs: list[BenchRun]
+    references: dict[str, str]
+    duration: float
+    notes: list[str] = field(default_factory=list)
+
+
+LUMPED = ("model.type=lumped",)
+CABLE = ("model.type=cosserat", "model.bending=false", "model.torsion=false", "model.knots=pinned")
+ROD = ("model.type=cosserat", "model.knots=rigid")
+
+
+def _n(n: int) -> tuple[str, ...]:
+    return (f"model.elements_per_thread={n}",)
+
+
+def _implicit(tolerance: float) -> tuple[str, ...]:
+    return ("simulation.integrator=generalized-alpha", "simulation.adaptive=true",
+            f"simulation.error_tolerance={tolerance:g}")
+
+
+def default_study(quick: bool = False) -> Study:
+    """The runs of ``rodnet bench``; ``quick``: a 5 x 5 net for 1 s, a smoke test of the
+    study in a few minutes."""
+    base: tuple[str, ...] = ()
+    duration = 3.0
+    if quick:
+        base = ("net.nodes_per_side=5", "net.mesh_length=1.0", "net.corner_mass=0.2",
+                "net.launch_speed=10.0")
+        duration = 1.0
+    base += (f"simulation.duration={duration:g}",)
+    runs: list[BenchRun] = []
+    tolerances = (1e-3, 1e-4) if quick else (1e-2, 1e-3, 1e-4)
+    # threads without bending: the lumped model is the reference physics
+    for safety in ((0.5,) if quick else (0.5, 0.25)):
+        runs.append(BenchRun("lumped explicit", f"safety {safety:g}", "no bending",
+                             base + LUMPED + _n(1) + (f"simulation.explicit_safety={safety:g}",)))
+    runs.append(BenchRun("lumped rk45", "rtol 1e-8", "no bending",
+                         base + LUMPED + _n(1) + ("simulation.integrator=rk45", "simulation.rtol=1e-8")))
+    for tol in tolerances:
+        runs.append(BenchRun("lumped implicit", f"tol {tol:g}", "no bending",
+                             base + LUMPED + _n(1) + _implicit(tol)))
+        runs.append(BenchRun("cable n=1", f"tol {tol:g}", "no bending", base + CABLE + _n(1) + _implicit(tol)))
+    # threads with bending and torsion
+    for n in ((1, 2) if quick else (1, 2, 4, 8)):
+        for tol in tolerances:
+            runs.append(BenchRun(f"cosserat n={n}", f"tol {tol:g}", "bending",
+                                 base + ROD + _n(n) + _implicit(tol)))
+    finest_n = 2 if quick else 8
+    references = {"no bending": BenchRun("lumped rk45", "rtol 1e-8", "", ()).label,
+                  "bending": BenchRun(f"cosserat n={finest_n}", f"tol {tolerances[-1]:g}", "", ()).label}
+    return Study(runs, references, duration)
+
+
+def run_one(run: BenchRun, folder: Path, timeout: float | None = None) -> dict[str, Any]:
+    """Run (or reuse the stored result of) one case; the record is also written to
+    ``folder/runs/<label>.json``.
+
+    A run still going after ``timeout`` seconds is interrupted (SIGINT, as Ctrl-C): it keeps its
+    frames and reports how far it got, with ``timed_out`` set in the record.
+    """
+    store = folder / "runs" / f"{run.label}.json"
+    if store.is_file():
+        return json.loads(store.read_text())
+    store.parent.mkdir(parents=True, exist_ok=True)
+    timed_out = False
+    with tempfile.TemporaryDirectory(prefix="rodnet-bench-") as out:
+        child = subprocess.Popen([sys.executable, "-c", CHILD, json.dumps(list(run.overrides)), out],
+                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        try:
+            stdout, stderr = child.communicate(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            timed_out = True
+            child.send_signal(signal.SIGINT)
+            stdout, stderr = child.communicate()
+    if child.returncode not in (0, 1) or not stdout.strip():
+        record: dict[str, Any] = {"summary": {"status": "failed", "message": stderr.strip()[-300:]},
+                                  "series": {}}
+    else:
+        record = json.loads(stdout.strip().splitlines()[-1])
+    record["timed_out"] = timed_out
+    record["run"] = {"curve": run.curve, "setting": run.setting, "family": run.family,
+                     "overrides": list(run.overrides)}
+    store.write_text(json.dumps(record))
+    return record
+
+
+def errors(record: dict[str, Any], reference: dict[str, Any]) -> dict[str, float]:
+    """The four error measures of a run against its family's reference (nan when either run
+    did not complete)."""
+    nan = {"max_mouth_area": math.nan, "time_of_max": math.nan, "distance_at_max": math.nan,
+           "com_path": math.nan}
+    if record["summary"].get("status") != "ok" or reference["summary"].get("status") != "ok":
+        return nan
+    m, r = record["summary"]["metrics"], reference["summary"]["metrics"]
+    if "max_mouth_area" not in m or "max_mouth_area" not in r:
+        return nan
+    d, d_ref = np.asarray(record["series"]["distance"]), np.asarray(reference["series"]["distance"])
+    k = min(len(d), len(d_ref))
+    return {"max_mouth_area": abs(m["max_mouth_area"] / r["max_mouth_area"] - 1.0),
+            "time_of_max": abs(m["time_of_max_mouth_area"] - r["time_of_max_mouth_area"]),
+            "distance_at_max": abs(m["distance_at_max_mouth_area"] - r["distance_at_max_mouth_area"]),
+            "com_path": float(np.max(np.abs(d[:k] - d_ref[:k]), initial=0.0))}
+
+
+COLUMNS = ("model", "setting", "status", "wall s", "steps", "Newton its", "factorisations",
+           "peak MB", "max area m^2", "t of max s", "err max area %", "err t of max s",
+           "err distance m", "err COM path m")
+
+
+def table_rows(study: Study, records: dict[str, dict[str, Any]]) -> list[list[str]]:
+    """One row per run, in the study's order."""
+    rows = []
+    for run in study.runs:
+        rec = records[run.label]
+        s = rec["summary"]
+        ref = records.get(study.references.get(run.family, ""), rec)
+        e = errors(rec, ref)
+        metrics = s.get("metrics") or {}
+        status = s.get("status", "?") if s.get("status") == "ok" else \
+            f"{s.get('status')}: {str(s.get('message', ''))[:60]}"
+        rows.append([run.curve, run.setting, status, _fmt(rec.get("process_wall_s")),
+                     _fmt(s.get("steps")), _fmt(s.get("newton_iterations")),
+                     _fmt(s.get("factorizations")), _fmt(rec.get("peak_rss_mb")),
+                     _fmt(metrics.get("max_mouth_area")), _fmt(metrics.get("time_of_max_mouth_area")),
+                     _fmt(100 * e["max_mouth_area"]), _fmt(e["time_of_max"]),
+                     _fmt(e["distance_at_max"]), _fmt(e["com_path"])])
+    return rows
+
+
+def _fmt(value: Any) -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, int):
+        return str(value)
+    value = float(value)
+    if math.isnan(value):
+        return "-"
+    return f"{value:.4g}"
+
+
+def spatial_orders(study: Study, records: dict[str, dict[str, Any]]) -> list[str]:
+    """Observed spatial order of the max mouth area from the Cosserat runs at their finest
+    tolerance: ``log2(|A_n - A_2n| / |A_2n - A_4n|)`` for successive halvings."""
+    finest: dict[int, float] = {}
+    for run in study.runs:
+        match = re.fullmatch(r"cosserat n=(\d+)", run.curve)
+        rec = records[run.label]
+        if match and rec["summary"].get("status") == "ok":
+            finest[int(match.group(1))] = rec["summary"]["metrics"]["max_mouth_area"]  # last = finest
+    ns = sorted(finest)
+    lines = [f"max mouth area at n = {n}: {finest[n]:.6g} m^2" for n in ns]
+    for a, b, c in zip(ns, ns[1:], ns[2:]):
+        d1, d2 = abs(finest[a] - finest[b]), abs(finest[b] - finest[c])
+        if d2 > 0:
+            lines.append(f"observed order, n = {a}, {b}, {c}: {math.log2(d1 / d2):.2f}")
+    return lines
+
+
+def write_outputs(study: Study, records: dict[str, dict[str, Any]], folder: Path) -> str:
+    """Write the Markdown table, the CSV and the plot; return the Markdown."""
+    rows = table_rows(study, records)
+    md = ["# Work-precision study: the reference deployment", "",
+          f"{study.duration:g} s simulated. Errors against the reference of each family: "
+          + "; ".join(f"{fam}: `{label}`" for fam, label in study.references.items()) + ".", "",
+          "| " + " | ".join(COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
+    md += ["| " + " | ".join(r) + " |" for r in rows]
+    md += ["", *[f"- {line}" for line in spatial_orders(study, records) + study.notes]]
+    text = "\n".join(md) + "\n"
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "work_precision.md").write_text(text)
+    with open(folder / "work_precision.csv", "w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(COLUMNS)
+        writer.writerows(rows)
+    _plot(study, records, folder / "work_precision.png")
+    return text
+
+
+def _plot(study: Study, records: dict[str, dict[str, Any]], path: Path) -> None:
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:  # the plot is optional; the table says everything
+        return
+    fig, ax = plt.subplots(figsize=(7, 5))
+    curves: dict[str, list[tuple[float, float]]] = {}
+    for run in study.runs:
+        rec = records[run.label]
+        ref = records.get(study.references.get(run.family, ""))
+        if ref is None or rec["run"]["curve"] is None or run.label == study.references.get(run.family):
+            continue
+        e = errors(rec, ref)["max_mouth_area"]
+        if np.isfinite(e) and e > 0:
+            curves.setdefault(run.curve, []).append((100 * e, rec["process_wall_s"]))
+    for curve, points in curves.items():
+        points.sort()
+        ax.loglog(*zip(*points), "o-", label=curve)
+    ax.set_xlabel("error in max mouth area [%]")
+    ax.set_ylabel("wall time [s]")
+    ax.set_title("Reference deployment: cost against accuracy")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def bench(folder: Path, quick: bool = False, only: str | None = None) -> str:
+    """Run the study (skipping runs stored in ``folder/runs``) and write its outputs."""
+    study = default_study(quick)
+    if only:
+        keep = [r for r in study.runs if only in r.curve] 
+        needed = {lbl for lbl in study.references.values()}
+        study.runs = keep + [r for r in study.runs if r.label in needed and r not in keep]
+    records = {}
+    for k, run in enumerate(study.runs, 1):
+        print(f"rodnet bench: [{k}/{len(study.runs)}] {run.curve}, {run.setting} ...", file=sys.stderr, flush=True)
+        records[run.label] = run_one(run, folder)
+        s = records[run.label]["summary"]
+        print(f"rodnet bench:     {s.get('status')} in {_fmt(records[run.label].get('process_wall_s'))} s",
+              file=sys.stderr, flush=True)
+    return write_outputs(study, records, folder)

@@ -1,0 +1,45 @@
+"""``rodnet bench``: the error measures and the tables, on hand-made run records."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rodnet.bench import BenchRun, Study, errors, spatial_orders, write_outputs
+
+
+def _record(area: float, t_max: float, dist: float, path: list[float], status: str = "ok") -> dict:
+    return {"summary": {"status": status, "steps": 10, "newton_iterations": 20, "factorizations": 20,
+                        "metrics": {"max_mouth_area": area, "time_of_max_mouth_area": t_max,
+                                    "distance_at_max_mouth_area": dist}},
+            "series": {"distance": path}, "process_wall_s": 1.5, "peak_rss_mb": 100.0,
+            "run": {"curve": "x"}}
+
+
+def test_errors_against_the_reference() -> None:
+    ref = _record(400.0, 1.30, 15.0, [0.0, 1.0, 2.0])
+    run = _record(404.0, 1.32, 14.5, [0.0, 1.1, 1.7])
+    e = errors(run, ref)
+    assert e["max_mouth_area"] == pytest.approx(0.01)
+    assert e["time_of_max"] == pytest.approx(0.02)
+    assert e["distance_at_max"] == pytest.approx(0.5)
+    assert e["com_path"] == pytest.approx(0.3)
+    failed = errors(_record(0, 0, 0, [], status="failed"), ref)
+    assert all(np.isnan(v) for v in failed.values())
+
+
+def test_tables_and_observed_spatial_order(tmp_path: Path) -> None:
+    """Areas converging as A_n = A + C / n^2 give an observed order of 2."""
+    runs = [BenchRun(f"cosserat n={n}", "tol 1e-4", "bending", ()) for n in (1, 2, 4)]
+    records = {r.label: _record(450.0 + 8.0 / n**2, 1.3, 15.0, [0.0, 1.0])
+               for r, n in zip(runs, (1, 2, 4))}
+    study = Study(runs, {"bending": runs[-1].label}, 3.0)
+    lines = spatial_orders(study, records)
+    assert lines[-1].endswith("2.00")
+    text = write_outputs(study, records, tmp_path)
+    assert text.count("\n| cosserat") == 3
+    assert (tmp_path / "work_precision.csv").read_text().count("\n") == 4
+    row = text.splitlines()[6].split(" | ")
+    assert float(row[10]) == pytest.approx(100 * 7.5 / 450.5, rel=1e-3)  # n = 1: error in %
