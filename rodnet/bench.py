@@ -204,6 +204,8 @@ def table_rows(study: Study, records: dict[str, dict[str, Any]]) -> list[list[st
         metrics = s.get("metrics") or {}
         status = s.get("status", "?") if s.get("status") == "ok" else \
             f"{s.get('status')}: {str(s.get('message', ''))[:60]}"
+        if rec.get("timed_out"):
+            status = f"interrupted at the time limit, t = {_fmt(s.get('simulated_time_s'))} s"
         rows.append([run.curve, run.setting, status, _fmt(rec.get("process_wall_s")),
                      _fmt(s.get("steps")), _fmt(s.get("newton_iterations")),
                      _fmt(s.get("factorizations")), _fmt(rec.get("peak_rss_mb")),
@@ -293,8 +295,10 @@ def _plot(study: Study, records: dict[str, dict[str, Any]], path: Path) -> None:
     plt.close(fig)
 
 
-def bench(folder: Path, quick: bool = False, only: str | None = None) -> str:
-    """Run the study (skipping runs stored in ``folder/runs``) and write its outputs."""
+def bench(folder: Path, quick: bool = False, only: str | None = None,
+          limit: float | None = 3600.0) -> str:
+    """Run the study (skipping runs stored in ``folder/runs``) and write its outputs; a run
+    still going after ``limit`` wall seconds is interrupted and reported as such."""
     study = default_study(quick)
     if only:
         keep = [r for r in study.runs if only in r.curve] 
@@ -303,7 +307,7 @@ def bench(folder: Path, quick: bool = False, only: str | None = None) -> str:
     records = {}
     for k, run in enumerate(study.runs, 1):
         print(f"rodnet bench: [{k}/{len(study.runs)}] {run.curve}, {run.setting} ...", file=sys.stderr, flush=True)
-        records[run.label] = run_one(run, folder)
+        records[run.label] = run_one(run, folder, timeout=limit)
         s = records[run.label]["summary"]
         print(f"rodnet bench:     {s.get('status')} in {_fmt(records[run.label].get('process_wall_s'))} s",
               file=sys.stderr, flush=True)

@@ -34,6 +34,8 @@ def _parser() -> argparse.ArgumentParser:
     ben.add_argument("--quick", action="store_true", help="a 5 x 5 net for 1 s")
     ben.add_argument("--only", default=None, metavar="TEXT",
                      help="only the models whose name contains TEXT (plus the references)")
+    ben.add_argument("--limit", type=float, default=3600.0, metavar="SECONDS",
+                     help="interrupt a run after this many wall seconds (default 3600)")
     for p in (run, demo):
         p.add_argument("-o", "--output", type=Path, default=None,
                        help="output directory (default: the scene's output.directory)")
@@ -64,7 +66,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "bench":
         from rodnet.bench import bench
 
-        print(bench(args.output, args.quick, args.only))
+        print(bench(args.output, args.quick, args.only, args.limit))
         return 0
     from rodnet.errors import SceneError
     from rodnet.scene import load_scene, scene_from_toml
