@@ -28,7 +28,8 @@ FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
 LEAF_SIZE = 4
-_STACK_DEPTH = 128
+STACK_DEPTH = 128
+"""Length of the scratch stack a :func:`nearest_triangle` query needs."""
 
 
 class Hierarchy:
@@ -209,41 +210,77 @@ def _box_distance2(p, lower, upper, node):  # pragma: no cover - compiled
     return d
 
 
+@numba.njit(cache=True, inline="always")
+def nearest_triangle(p, root, best, tri, lower, upper, left, right, start, count, order, stack,
+                     w):  # pragma: no cover - compiled
+    """Nearest triangle to one point among those below a node of the hierarchy.
+
+    Visits the nearer child first and skips every box at least as far as the best squared
+    distance found so far.
+
+    Parameters
+    ----------
+    p : (3,) float
+        Query point in the mesh frame [m].
+    root : int
+        Node whose triangles are searched (0: the whole mesh).
+    best : float
+        Squared distance [m^2] a triangle must beat to be taken (``inf``: no cut-off).
+    tri, lower, upper, left, right, start, count, order : arrays
+        The triangles and the arrays of a :class:`Hierarchy`.
+    stack : (STACK_DEPTH,) int
+        Scratch space.
+    w : (3,) float
+        Scratch space.
+
+    Returns
+    -------
+    squared_distance : float
+        To the nearest triangle [m^2], or ``best`` when none is nearer.
+    face : int
+        Index of the nearest triangle, or -1.
+    b0, b1, b2 : float
+        Barycentric coordinates of the closest point in that triangle (zeros for face -1).
+    """
+    face = -1
+    b0 = b1 = b2 = 0.0
+    stack[0] = root
+    depth = 1
+    while depth > 0:
+        depth -= 1
+        node = stack[depth]
+        if _box_distance2(p, lower, upper, node) >= best:
+            continue
+        if count[node] > 0:
+            for j in range(start[node], start[node] + count[node]):
+                f = order[j]
+                _triangle_barycentric(p, tri[f, 0], tri[f, 1], tri[f, 2], w)
+                d = 0.0
+                for k in range(3):
+                    d += (p[k] - w[0] * tri[f, 0, k] - w[1] * tri[f, 1, k] - w[2] * tri[f, 2, k]) ** 2
+                if d < best:
+                    best, face = d, f
+                    b0, b1, b2 = w[0], w[1], w[2]
+            continue
+        near, far = left[node], right[node]
+        if _box_distance2(p, lower, upper, far) < _box_distance2(p, lower, upper, near):
+            near, far = far, near
+        stack[depth], stack[depth + 1] = far, near
+        depth += 2
+    return best, face, b0, b1, b2
+
+
 @numba.njit(cache=True)
 def _closest(points, tri, lower, upper, left, right, start, count, order,
              max_distance):  # pragma: no cover - compiled
     n = points.shape[0]
-    dist2 = np.full(n, max_distance * max_distance)
-    face = np.full(n, -1)
-    bary = np.zeros((n, 3))
-    stack = np.empty(_STACK_DEPTH, np.int64)
+    dist2 = np.empty(n)
+    face = np.empty(n, np.int64)
+    bary = np.empty((n, 3))
+    stack = np.empty(STACK_DEPTH, np.int64)
     w = np.empty(3)
+    cut = max_distance * max_distance
     for i in range(n):
-        p = points[i]
-        best = dist2[i]
-        stack[0] = 0
-        depth = 1
-        while depth > 0:
-            depth -= 1
-            node = stack[depth]
-            if _box_distance2(p, lower, upper, node) >= best:
-                continue
-            if count[node] > 0:
-                for j in range(start[node], start[node] + count[node]):
-                    f = order[j]
-                    _triangle_barycentric(p, tri[f, 0], tri[f, 1], tri[f, 2], w)
-                    d = 0.0
-                    for k in range(3):
-                        d += (p[k] - w[0] * tri[f, 0, k] - w[1] * tri[f, 1, k] - w[2] * tri[f, 2, k]) ** 2
-                    if d < best:
-                        best = d
-                        face[i] = f
-                        bary[i, 0], bary[i, 1], bary[i, 2] = w[0], w[1], w[2]
-                continue
-            near, far = left[node], right[node]
-            if _box_distance2(p, lower, upper, far) < _box_distance2(p, lower, upper, near):
-                near, far = far, near
-            stack[depth], stack[depth + 1] = far, near
-            depth += 2
-        dist2[i] = best
+        dist2[i], face[i], bary[i, 0], bary[i, 1], bary[i, 2] = nearest_triangle(
+            points[i], 0, cut, tri, lower, upper, left, right, start, count, order, stack, w)
     return dist2, face, bary

@@ -23,6 +23,39 @@ def explicit_step(model: LumpedModel, dt: float, adaptive: bool, safety: float) 
     return safety * model.stable_step() if adaptive else dt
 
 
+def whole_steps(t_start: float, t_end: float, step: float) -> tuple[int, float]:
+    """Steps from ``t_start`` to ``t_end`` [s]: ``step`` [s] shrunk so that a whole number fits.
+
+    Returns
+    -------
+    n_steps : int
+        How many steps, at least one.
+    h : float
+        Their length [s].
+    """
+    n_steps = max(1, math.ceil((t_end - t_start) / step - 1e-9))
+    return n_steps, (t_end - t_start) / n_steps
+
+
+def diverged(t: float, h: float, limit: float, scene: str = "this scene") -> SimulationFailed:
+    """The error of an explicit run whose state became non-finite.
+
+    Parameters
+    ----------
+    t : float
+        Time [s] at which it was found.
+    h : float
+        Step [s] in use.
+    limit : float
+        Stability limit [s] of the scene.
+    scene : str
+        What ``limit`` is the limit of, as the message names it.
+    """
+    return SimulationFailed(
+        f"the explicit solution diverged (non-finite state) at t = {t:.6g} s with dt = {h:.3g} s; "
+        f"the stability limit of {scene} is {limit:.3g} s")
+
+
 def integrate_explicit(model: LumpedModel, x0: NDArray[np.float64], v0: NDArray[np.float64],
                        times: NDArray[np.float64], dt: float, on_frame: FrameSink,
                        on_progress: ProgressSink | None = None,
@@ -47,17 +80,13 @@ def integrate_explicit(model: LumpedModel, x0: NDArray[np.float64], v0: NDArray[
     k = model.kernel_arguments()
     args = (*k[:6], model.inv_mass, *k[6:])
     for t_start, t_end in zip(times[:-1], times[1:]):
-        n_steps = max(1, math.ceil((t_end - t_start) / dt - 1e-9))
-        h = (t_end - t_start) / n_steps
+        n_steps, h = whole_steps(t_start, t_end, dt)
         peak, done = advance(x, v, scratch, float(t_start), h, n_steps, *args)
         stats.record_step(h, done)
         stats.function_evaluations += done
         stats.max_tension = max(stats.max_tension, peak)
         if done < n_steps or not np.isfinite(v).all():
-            raise SimulationFailed(
-                f"the explicit solution diverged (non-finite state) at t = {t_start + done * h:.6g} s "
-                f"with dt = {h:.3g} s; the stability limit of this scene is "
-                f"{model.stable_step():.3g} s")
+            raise diverged(t_start + done * h, h, model.stable_step())
         on_frame(float(t_end), x, v)
         if on_progress is not None:
             on_progress(float(t_end), h, stats)

@@ -11,13 +11,13 @@ taken with 0.9 times the step that respects the limit; the next frame interval s
 
 from __future__ import annotations
 
-import math
 from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
 from rodnet.errors import SimulationFailed
+from rodnet.integrate.explicit import diverged, whole_steps
 from rodnet.integrate.frames import FrameSink, ProgressSink, StepStats
 from rodnet.kernels.contact_compiled import advance_contact
 
@@ -51,8 +51,7 @@ def march_with_contact(model: LumpedContactModel, x: NDArray[np.float64], v: NDA
     for t_start, t_end in zip(times[:-1], times[1:]):
         t, step = float(t_start), dt
         while True:
-            n_steps = max(1, math.ceil((t_end - t) / step - 1e-9))
-            h = (t_end - t) / n_steps
+            n_steps, h = whole_steps(t, t_end, step)
             peak, done, work, status, allowed = advance_contact(
                 x, v, scratch, t, h, n_steps, *lumped, *bodies, taken, body_force)
             if done:
@@ -61,10 +60,8 @@ def march_with_contact(model: LumpedContactModel, x: NDArray[np.float64], v: NDA
             stats.max_tension = max(stats.max_tension, peak)
             stats.extra["friction_work"] += work
             if status == 1 or not np.isfinite(v).all():
-                raise SimulationFailed(
-                    f"the explicit solution diverged (non-finite state) at t = {t + done * h:.6g} s "
-                    f"with dt = {h:.3g} s; the stability limit of this scene, contact included, "
-                    f"is {model.stable_step():.3g} s")
+                raise diverged(t + done * h, h, model.stable_step(),
+                               "this scene, contact included,")
             if status == 0:
                 break
             t += done * h

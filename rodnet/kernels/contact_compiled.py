@@ -25,10 +25,8 @@ import math
 import numba
 import numpy as np
 
-from rodnet.contact.mesh_distance import _box_distance2, _triangle_barycentric
-from rodnet.kernels.lumped_explicit import accumulate_forces
-
-_STACK_DEPTH = 128
+from rodnet.contact.mesh_distance import STACK_DEPTH, nearest_triangle
+from rodnet.kernels.lumped_explicit import accumulate_forces, update_state
 
 
 @numba.njit(cache=True)
@@ -106,31 +104,8 @@ def _mesh(p, root, on_surface, tri, lower, upper, left, right, start, count, ord
           face_normal, edge_normal, corner_normal, stack, w, n):  # pragma: no cover - compiled
     """(G9)-(G10): nearest triangle through the hierarchy below ``root``, sign and normal from
     the pseudonormal of the closest feature."""
-    best, face = np.inf, -1
-    b0 = b1 = b2 = 0.0
-    stack[0] = root
-    depth = 1
-    while depth > 0:
-        depth -= 1
-        node = stack[depth]
-        if _box_distance2(p, lower, upper, node) >= best:
-            continue
-        if count[node] > 0:
-            for j in range(start[node], start[node] + count[node]):
-                f = order[j]
-                _triangle_barycentric(p, tri[f, 0], tri[f, 1], tri[f, 2], w)
-                d = 0.0
-                for k in range(3):
-                    d += (p[k] - w[0] * tri[f, 0, k] - w[1] * tri[f, 1, k] - w[2] * tri[f, 2, k]) ** 2
-                if d < best:
-                    best, face = d, f
-                    b0, b1, b2 = w[0], w[1], w[2]
-            continue
-        near, far = left[node], right[node]
-        if _box_distance2(p, lower, upper, far) < _box_distance2(p, lower, upper, near):
-            near, far = far, near
-        stack[depth], stack[depth + 1] = far, near
-        depth += 2
+    best, face, b0, b1, b2 = nearest_triangle(p, root, np.inf, tri, lower, upper, left, right,
+                                              start, count, order, stack, w)
     zeros = int(b0 == 0.0) + int(b1 == 0.0) + int(b2 == 0.0)
     if zeros == 1:
         i = 0 if b0 == 0.0 else (1 if b1 == 0.0 else 2)
@@ -248,7 +223,7 @@ def accumulate_contact(x, v, force, dt, inv_mass, segments, radius, node_share,
     """
     n_seg, n_pts = segments.shape[0], points_per_segment
     power, total, contacts, allowed = 0.0, 0.0, 0, np.inf
-    stack = np.empty(_STACK_DEPTH, np.int64)
+    stack = np.empty(STACK_DEPTH, np.int64)
     w, nl, nw, pl = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
     la, lb, vp = np.empty(3), np.empty(3), np.empty(3)
     marked = np.empty(x.shape[0], np.int64)
@@ -352,13 +327,6 @@ def advance_contact(x, v, force, t0, dt, n_steps,
             return max_tension, step, work, 2, allowed
         max_tension = max(max_tension, peak)
         work += dt * power
-        finite = True
-        for i in range(x.shape[0]):
-            for k in range(3):
-                v[i, k] += dt * force[i, k] * inv_mass[i]
-                x[i, k] += dt * v[i, k]
-            if not (math.isfinite(x[i, 0]) and math.isfinite(x[i, 1]) and math.isfinite(x[i, 2])):
-                finite = False
-        if not finite:
+        if not update_state(x, v, force, inv_mass, dt):
             return max_tension, step + 1, work, 1, np.inf
     return max_tension, n_steps, work, 0, np.inf

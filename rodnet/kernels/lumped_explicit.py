@@ -64,6 +64,26 @@ def accumulate_forces(x, v, t, force,
 
 
 @numba.njit(cache=True)
+def update_state(x, v, force, inv_mass, dt):  # pragma: no cover - compiled
+    """One symplectic Euler update (S9) of ``x``, ``v`` (N, 3) in place: ``v += dt force / m``,
+    then ``x += dt v``, with ``force`` (N, 3) [N] and ``inv_mass`` (N,) [1/kg].
+
+    Returns
+    -------
+    finite : bool
+        False when a position became non-finite.
+    """
+    finite = True
+    for i in range(x.shape[0]):
+        for k in range(3):
+            v[i, k] += dt * force[i, k] * inv_mass[i]
+            x[i, k] += dt * v[i, k]
+        if not (math.isfinite(x[i, 0]) and math.isfinite(x[i, 1]) and math.isfinite(x[i, 2])):
+            finite = False
+    return finite
+
+
+@numba.njit(cache=True)
 def advance(x, v, force, t0, dt, n_steps,
             segments, rest_length, EA, etaA, kink_strain, tension_only,
             inv_mass, gravity_force, load_nodes, load_force, load_ramp):  # pragma: no cover
@@ -80,13 +100,6 @@ def advance(x, v, force, t0, dt, n_steps,
                                  kink_strain, tension_only, gravity_force, load_nodes,
                                  load_force, load_ramp)
         max_tension = max(max_tension, peak)
-        finite = True
-        for i in range(x.shape[0]):
-            for k in range(3):
-                v[i, k] += dt * force[i, k] * inv_mass[i]
-                x[i, k] += dt * v[i, k]
-            if not (math.isfinite(x[i, 0]) and math.isfinite(x[i, 1]) and math.isfinite(x[i, 2])):
-                finite = False
-        if not finite:
+        if not update_state(x, v, force, inv_mass, dt):
             return max_tension, step + 1
     return max_tension, n_steps

@@ -15,18 +15,9 @@ from rodnet.integrate.explicit import integrate_explicit
 from rodnet.kernels.contact_compiled import accumulate_contact
 from rodnet.run import prepare
 from rodnet.scene import scene_from_toml
+from tests.contact.scenes import cord, run_ok
 
 RNG = np.random.default_rng(5)
-
-MATERIAL = """
-[[materials]]
-name = "cord"
-density = 1000.0
-youngs_modulus = 1.0e9
-diameter = {diameter}
-mass_per_length = 0.01
-axial_stiffness = 1.0e3
-"""
 
 
 def four_bodies_scene(tmp_path: Path, diameter: float = 0.01, smoothing: float = 1e-3,
@@ -40,7 +31,7 @@ integrator = "backward-euler"
 [model]
 type = "lumped"
 axial = "linear"
-{MATERIAL.format(diameter=diameter)}
+{cord(diameter)}
 [[rods]]
 name = "r"
 material = "cord"
@@ -169,13 +160,7 @@ gravity = [0.0, 0.0, -9.81]
 [model]
 type = "lumped"
 axial = "linear"
-[[materials]]
-name = "cord"
-density = 1000.0
-youngs_modulus = 1.0e9
-diameter = 2.0e-3
-mass_per_length = 0.01
-axial_stiffness = 1.0
+""" + cord(axial_stiffness=1.0) + """
 [[rods]]
 name = "r"
 material = "cord"
@@ -273,13 +258,7 @@ gravity = [0.0, 0.0, 0.0]
 [model]
 type = "lumped"
 axial = "linear"
-[[materials]]
-name = "cord"
-density = 1000.0
-youngs_modulus = 1.0e9
-diameter = 1.0e-3
-mass_per_length = 0.01
-axial_stiffness = 10.0
+""" + cord(diameter=1.0e-3, axial_stiffness=10.0) + """
 [[rods]]
 name = "r"
 material = "cord"
@@ -307,14 +286,10 @@ def test_travel_limit_stops_a_fast_rod_at_a_thin_plate(integrator: str) -> None:
     """At 10 m/s backward Euler's first step of 1 ms would carry the rod from 6 mm in front of
     the 2 mm plate to 3 mm behind it, where no contact force acts; the travel limit shortens the
     steps near the plate and keeps the rod in front (explicit: the step is limited as well)."""
-    from rodnet.run import run
-    import tempfile
-
-    scene = scene_from_toml(PLATE_SHOT.format(integrator=integrator))
-    r = run(scene, tempfile.mkdtemp(), progress=False)
-    assert r.status == "ok", r.message
+    text = PLATE_SHOT.format(integrator=integrator)
+    r = run_ok(text)
     z = r.arrays["positions"][:, :, 2]
     assert z.max() < 0.006 - 0.001                        # never reached the near face
     assert (r.arrays["velocities"][-1, :, 2] < 0).all()   # bounced back
-    limit = prepare(scene).model.contact.travel_limit[0]
+    limit = prepare(scene_from_toml(text)).model.contact.travel_limit[0]
     assert r.summary["integrator"]["dt_min"] <= limit / 10.0 * 1.0001

@@ -5,27 +5,17 @@ threads, and the result files. On every frame no thread centreline point may be 
 from __future__ import annotations
 
 import json
-import tempfile
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from rodnet.contact.lumped import LumpedContactModel
-from rodnet.run import RunResult, prepare, run
+from rodnet.run import RunResult, prepare
 from rodnet.scene import scene_from_toml
+from tests.contact.scenes import cord, run_ok
 
 G = 9.81
-
-CORD = """
-[[materials]]
-name = "cord"
-density = 1000.0
-youngs_modulus = 1.0e9
-diameter = 2.0e-3
-mass_per_length = 0.01
-axial_stiffness = 1.0e3
-"""
 
 DROP = """
 [simulation]
@@ -39,7 +29,7 @@ type = "{model}"
 bending = false
 torsion = false
 axial = "linear"
-""" + CORD + """
+""" + cord() + """
 [[rods]]
 name = "r"
 material = "cord"
@@ -73,21 +63,22 @@ def drop_text(integrator: str = "explicit", model: str = "lumped", adaptive: str
 def drop(integrator: str = "explicit", model: str = "lumped", adaptive: str = "true",
          vtk: str = "false", directory: str | None = None, duration: float = 1.0,
          dt: float = 1e-4) -> RunResult:
-    scene = scene_from_toml(drop_text(integrator, model, adaptive, vtk, duration, dt))
-    r = run(scene, directory or tempfile.mkdtemp(), progress=False)
-    assert r.status == "ok", r.message
-    return r
+    return run_ok(drop_text(integrator, model, adaptive, vtk, duration, dt), directory=directory)
+
+
+def centreline_points(r: RunResult, samples: int = 20) -> np.ndarray:
+    """``samples + 1`` evenly spaced points on every segment, on every frame: (F, S, samples + 1,
+    3) [m], from the start node to the end node."""
+    x, seg = r.arrays["positions"], r.arrays["segments"]
+    xi = np.linspace(0.0, 1.0, samples + 1)[None, None, :, None]
+    return (1 - xi) * x[:, seg[:, 0], None] + xi * x[:, seg[:, 1], None]
 
 
 def smallest_distance(r: RunResult, scene_text: str, samples: int = 20) -> float:
     """The smallest signed distance [m] of any of ``samples`` points per segment to any body,
     over every frame (positive: every centreline point outside every body)."""
     contact = prepare(scene_from_toml(scene_text)).model.contact
-    x = r.arrays["positions"]
-    seg = r.arrays["segments"]
-    xi = np.linspace(0.0, 1.0, samples + 1)
-    points = ((1 - xi)[None, None, :, None] * x[:, seg[:, 0], None, :]
-              + xi[None, None, :, None] * x[:, seg[:, 1], None, :]).reshape(-1, 3)
+    points = centreline_points(r, samples).reshape(-1, 3)
     smallest = np.inf
     for b, shape in enumerate(contact.shapes):
         local = (points - contact.position[b]) @ contact.rotation[b]
@@ -197,14 +188,9 @@ vtk = false
 
 def test_net_at_50_m_s_does_not_pass_through_a_2_mm_plate() -> None:
     text = net_at_plate()
-    r = run(scene_from_toml(text), tempfile.mkdtemp(), progress=False)
-    assert r.status == "ok", r.message
+    r = run_ok(text)
     contact = prepare(scene_from_toml(text)).model.contact
-    x = r.arrays["positions"]
-    seg = r.arrays["segments"]
-    xi = np.linspace(0.0, 1.0, 21)
-    points = (1 - xi)[None, None, :, None] * x[:, seg[:, 0], None] + xi[None, None, :, None] * x[:, seg[:, 1], None]
-    local = (points - contact.position[0]) @ contact.rotation[0]      # (F, S, 21, 3)
+    local = (centreline_points(r) - contact.position[0]) @ contact.rotation[0]      # (F, S, 21, 3)
     over_plate = (np.abs(local[..., 0]) < 0.5) & (np.abs(local[..., 1]) < 0.5)
     # the net comes from the plate's local -z side; on every frame no point over the plate may
     # be at or beyond its mid-plane
@@ -227,7 +213,7 @@ dt = 1.0e-3
 gravity = [0.0, 0.0, -9.81]
 [model]
 type = "lumped"
-""" + CORD + """
+""" + cord() + """
 [[rods]]
 name = "r"
 material = "cord"
@@ -257,9 +243,7 @@ MU, WEIGHT = 0.4, 0.4 * 0.01 * G
 def drag(integrator: str, overrides: tuple[str, ...] = ()) -> tuple[RunResult, str]:
     """A 0.4 m thread on a box pulled at its end by twice its sliding friction."""
     text = DRAG.format(integrator=integrator, pull=2.0 * MU * WEIGHT)
-    r = run(scene_from_toml(text, overrides), tempfile.mkdtemp(), progress=False)
-    assert r.status == "ok", r.message
-    return r, text
+    return run_ok(text, overrides), text
 
 
 @pytest.mark.parametrize("integrator,overrides", [
