@@ -69,6 +69,33 @@ def support_dofs(names: tuple[str, ...], node: int, rotation: int, n_nodes: int)
     return dofs
 
 
+def residual_bending_shear(stiffness: FloatArray, rest_length: FloatArray) -> FloatArray:
+    """Section stiffnesses with the shear stiffness lowered by the residual bending flexibility
+    of each element (FORMULATION.md, C44): ``1/GA_eff = 1/GA + Le^2 / (12 EI)``.
+
+    Parameters
+    ----------
+    stiffness : (E, 6) float
+        ``[EA, GA2, GA3, GJ, EI2, EI3]`` [N, N m^2]; shear along ``d2`` bends about ``d3``, so
+        ``GA2`` pairs with ``EI3`` and ``GA3`` with ``EI2``.
+    rest_length : (E,) float
+        Element length ``Le`` [m].
+
+    Returns
+    -------
+    (E, 6) float
+        A copy with ``GA2``, ``GA3`` replaced; 0 where the paired ``EI`` is 0 (no bending
+        stiffness: nothing resists the element's rotation relative to its chord).
+    """
+    out = np.array(stiffness, dtype=float)
+    for shear, bend in ((1, 5), (2, 4)):
+        ga, ei = out[:, shear], out[:, bend]
+        flexible = (ei > 0.0) & (ga > 0.0)
+        ei, ga = np.where(flexible, ei, 1.0), np.where(flexible, ga, 1.0)
+        out[:, shear] = np.where(flexible, 1.0 / (1.0 / ga + rest_length**2 / (12.0 * ei)), 0.0)
+    return out
+
+
 def build_cosserat(scene: Scene, structure: Structure) -> tuple[CosseratModel, RodConfiguration, FloatArray]:
     """The rod model, its initial configuration and initial velocities (n_dof,)."""
     if structure.net is not None and scene.rods:
@@ -86,6 +113,8 @@ def build_cosserat(scene: Scene, structure: Structure) -> tuple[CosseratModel, R
     rho_a = np.array([m.rhoA for m in mats])[m_idx]
     rho_i = np.array([m.rhoI for m in mats])[m_idx]
     le = structure.rest_length
+    if scene.model.shear_correction == "residual-bending":
+        stiffness = residual_bending_shear(stiffness, le)
     if structure.net is not None:
         from rodnet.formulations.cosserat_net import build_cosserat_net
 

@@ -14,6 +14,14 @@ The corner mass is a point mass with no rotary inertia; the corner thread's end 
 rotation node. The packed initial state is the deployed one scaled about the centre: every
 thread keeps its direction, so bending, torsion and shear strains are exactly zero and the axial
 strain is ``packing - 1 < 0``, which the tension-only law turns into zero force.
+
+Initial spin of thread ends. A corner mass starts moving while its thread's other nodes are at
+rest, so the chord of the element at the corner mass turns from the first instant. A thread end
+with a rotation node of its own (at a corner mass, or at a pinned knot) starts with the angular
+velocity that makes its element's initial shear and twist rates zero (:func:`end_spin`). Started at
+rest instead, the end would be turned by the Kelvin-Voigt shear force acting on its tiny rotary
+inertia (about 2e10 rad/s^2 in the reference deployment), a transient over the retardation time
+that no step of a deployment resolves.
 """
 
 from __future__ import annotations
@@ -26,7 +34,7 @@ from rodnet.errors import SceneError
 from rodnet.formulations.cosserat import CosseratModel, RodConfiguration
 from rodnet.formulations.cosserat_build import support_dofs
 from rodnet.kernels import so3
-from rodnet.kernels.cosserat_strain import reference_strains
+from rodnet.kernels.cosserat_strain import reference_strains, strain_matrix
 from rodnet.topology import Structure, in_plane_axes
 
 FloatArray = NDArray[np.float64]
@@ -113,5 +121,41 @@ def build_cosserat_net(scene: Scene, structure: Structure, section: dict[str, Fl
         size=structure.size)
     v0 = np.zeros(model.n_dof)
     v0[:3 * n_nodes] = structure.velocities.ravel()
+    v0[3 * n_nodes:] = end_spin(n_rot, rot_nodes, offset_R, le, structure.positions[seg],
+                                quat_ends, v0[:3 * n_nodes].reshape(-1, 3)[seg]).ravel()
     v0[~free] = 0.0
     return model, RodConfiguration(structure.positions.copy(), quat_nodes), v0
+
+
+def end_spin(n_rot: int, rot_nodes: NDArray[np.int64], offset_R: FloatArray,
+             rest_length: FloatArray, x: FloatArray, quat_ends: FloatArray,
+             velocity: FloatArray) -> FloatArray:
+    """Body angular velocities of the rotation nodes (R, 3) [rad/s]: zero, except at element
+    ends whose rotation node is their own, which get the smallest spin that makes the element's
+    shear and twist rates (C21) zero, given the translational velocities.
+
+    Parameters
+    ----------
+    n_rot : int
+        Number of rotation nodes R.
+    rot_nodes : (E, 2) int
+        Rotation node of each element end.
+    offset_R : (E, 2, 3, 3) float
+        ``Q`` of each end, ``R_end = R_node Q``.
+    rest_length : (E,) float
+    x : (E, 2, 3) float, quat_ends : (E, 2, 4) float
+        End positions [m] and material quaternions of the initial state.
+    velocity : (E, 2, 3) float
+        End velocities [m/s].
+    """
+    spin = np.zeros((n_rot, 3))
+    own = np.bincount(rot_nodes.ravel(), minlength=n_rot)[rot_nodes] == 1     # (E, 2)
+    B = strain_matrix(rest_length, x, quat_ends)[:, 1:4]      # shear 2, shear 3, twist rows
+    rate = np.einsum("eij,ej->ei", B[:, :, [0, 1, 2, 6, 7, 8]], velocity.reshape(-1, 6))
+    for e in np.flatnonzero(own.any(axis=1) & (np.abs(rate).max(axis=1) > 0.0)):
+        ends = np.flatnonzero(own[e])
+        columns = np.concatenate([np.arange(3, 6) + 6 * end for end in ends])
+        w = -np.linalg.lstsq(B[e][:, columns], rate[e], rcond=None)[0].reshape(-1, 3)
+        for end, w_end in zip(ends, w):     # W_end = Q^T W_node
+            spin[rot_nodes[e, end]] = offset_R[e, end] @ w_end
+    return spin
