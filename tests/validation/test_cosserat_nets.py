@@ -26,7 +26,6 @@ from rodnet.integrate.newton import NewtonOptions
 from rodnet.run import prepare, run
 from rodnet.scene import scene_from_toml
 
-LUMPED_MAX_AREA = 30.47     # m^2 at t = 0.26 s: explicit lumped run of the same net (ept 2)
 BASE = ["output.vtk=false", "output.picture=false", "output.plot=false",
         "net.nodes_per_side=5", "simulation.dt=1e-4", "simulation.dt_max=1e-4",
         "simulation.integrator=generalized-alpha"]
@@ -61,14 +60,20 @@ def test_packed_start_is_stress_free_without_shear_rate(knots: str, elements: in
 
 
 def test_pinned_net_deploys_like_the_lumped_model(tmp_path: Path) -> None:
-    result = run(net("pinned", 2), tmp_path, progress=False)
-    assert result.status == "ok", result.message
+    """Largest mouth area 30.43 m^2 at 0.26 s against the lumped model's 30.47 m^2 (measured);
+    with the corner-thread elements inside out it was 42.6 m^2 at the end of the run."""
+    lumped = run(scene_from_toml(demo_scene_text(), [
+        *BASE[:4], "model.type=lumped", "model.elements_per_thread=2", "simulation.duration=0.3",
+        "simulation.integrator=explicit"]), tmp_path / "lumped", progress=False)
+    result = run(net("pinned", 2), tmp_path / "rod", progress=False)
+    assert lumped.status == "ok" and result.status == "ok", result.message
     assert np.isfinite(result.arrays["positions"]).all()
     tension = result.arrays["tension"]
     assert tension.min() >= 0.0 and tension.max() > 100.0  # taut threads, never pushing
-    metrics = result.summary["metrics"]
-    assert metrics["max_mouth_area"] == pytest.approx(LUMPED_MAX_AREA, rel=0.01)
-    assert metrics["time_of_max_mouth_area"] == pytest.approx(0.26, abs=0.011)
+    rod, reference = result.summary["metrics"], lumped.summary["metrics"]
+    assert rod["max_mouth_area"] == pytest.approx(reference["max_mouth_area"], rel=0.01)
+    assert rod["time_of_max_mouth_area"] == pytest.approx(reference["time_of_max_mouth_area"],
+                                                          abs=0.011)
 
 
 class _OutOfTime(Exception):
