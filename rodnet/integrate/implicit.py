@@ -156,22 +156,41 @@ class Stepper:
                 S = _combine(inertia, weight_C, C, weight_K, _times_tangent_operator(s, K, dq))
             return M * new.vd[free] + g[free], S
 
-        reduced_rot, free_trans = self._layout()
         d_increment = h if self.scheme == "backward-euler" else h * h * beta * c
+
+        def start(vd_guess: FloatArray) -> FloatArray:
+            return (state.v + h * vd_guess)[free] if self.scheme == "backward-euler" else vd_guess[free]
+
+        # predictor: the acceleration extrapolated linearly from the last two steps, which saves
+        # iterations on smooth motion; the constant-acceleration predictor when that fails
+        guesses = [state.vd] if state.vd_previous is None else \
+            [2.0 * state.vd - state.vd_previous, state.vd]
+        return self._solve(state, evaluate, lambda u: unpack(u)[0], [start(g) for g in guesses],
+                           d_increment)
+
+    def _solve(self, state: MotionState, evaluate: Any, end_state: Any, starts: list[FloatArray],
+               d_increment: float) -> tuple[MotionState, NewtonResult]:
+        """Newton on one step's unknown ``u`` from each of ``starts`` in turn until it converges.
+
+        ``evaluate(u, need_matrix)`` gives the residual and iteration matrix, ``end_state(u)``
+        the state at the end of the step; ``d_increment`` is d(configuration increment)/du, which
+        converts a Newton correction into the rotations it makes (capped at ``max_rotation``)
+        and the motion it makes (a correction below ``xtol`` is converged).
+        """
+        s, free = self.system, self.system.free
+        reduced_rot, free_trans = self._layout()
+        reduced_trans = np.flatnonzero(free_trans)
+        length = s.length_scale
+        # at the converged previous step M vd = -g, so |M vd| measures the forces acting
+        scale = max(float(np.abs(s.dof_mass[free] * state.vd[free]).max(initial=0.0)),
+                    1e-2 * s.force_scale)
 
         def step_limit(du: FloatArray) -> float:
             return _rotation_cap(d_increment * du[reduced_rot], self.options.max_rotation)
 
-        def start(vd_guess: FloatArray) -> FloatArray:
-            return (state.v + h * vd_guess)[free] if self.scheme == "backward-euler" else vd_guess[free]
-        # at the converged previous step M vd = -g, so |M vd| measures the forces acting
-        scale = max(float(np.abs(M * state.vd[free]).max(initial=0.0)), 1e-2 * s.force_scale)
         def active_set(u: FloatArray) -> int:
-            new, _ = unpack(u)
-            return s.active_set(new.q, new.v)
-
-        length = s.length_scale
-        reduced_trans = np.flatnonzero(free_trans)
+            end = end_state(u)
+            return s.active_set(end.q, end.v)
 
         def increment_small(du: FloatArray) -> bool:
             return bool(d_increment * np.abs(du[reduced_trans]).max(initial=0.0)
@@ -179,16 +198,12 @@ class Stepper:
                         and d_increment * np.abs(du[reduced_rot]).max(initial=0.0)
                         <= self.options.xtol)
 
-        # predictor: the acceleration extrapolated linearly from the last two steps, which saves
-        # iterations on smooth motion; the constant-acceleration predictor when that fails
-        guesses = [state.vd] if state.vd_previous is None else \
-            [2.0 * state.vd - state.vd_previous, state.vd]
-        for guess in guesses:
-            result = newton(evaluate, start(guess), scale, self.solver, self.options, step_limit,
+        for u0 in starts:
+            result = newton(evaluate, u0, scale, self.solver, self.options, step_limit,
                             active_set, increment_small=increment_small)
             if result.converged:
                 break
-        return unpack(result.u)[0], result
+        return end_state(result.u), result
 
     def local_error(self, old: MotionState, new: MotionState, h: float) -> float:
         """Estimated local error [m] of the positions over the step from ``old`` to ``new``:
@@ -272,32 +287,11 @@ class Stepper:
             S = _combine(inertia_rows, 0.5, C, 0.25 * h, _times_tangent_operator(s, K, 0.5 * dq))
             return (rate + g)[free], S
 
-        reduced_rot, free_trans = self._layout()
-        d_increment = 0.5 * h
-        length = s.length_scale
-
-        def step_limit(du: FloatArray) -> float:
-            return _rotation_cap(d_increment * du[reduced_rot], self.options.max_rotation)
-
-        def increment_small(du: FloatArray) -> bool:
-            move = d_increment * np.abs(du)
-            return bool(np.max(move[free_trans], initial=0.0) <= self.options.xtol * length
-                        and np.max(move[~free_trans], initial=0.0) <= self.options.xtol)
-
-        def active_set(u: FloatArray) -> int:
-            end, _, _, _ = unpack(u)
-            return s.active_set(end.q, end.v)
-
-        scale = max(float(np.max(np.abs(M * state.vd[free]), initial=0.0)), 1e-2 * s.force_scale)
         guesses = [state.vd] if state.vd_previous is None else \
             [2.0 * state.vd - state.vd_previous, state.vd]
         guesses.append(np.zeros(n))
-        for guess in guesses:
-            result = newton(evaluate, (state.v + h * guess)[free], scale, self.solver, self.options,
-                            step_limit, active_set, increment_small=increment_small)
-            if result.converged:
-                break
-        return unpack(result.u)[0], result
+        return self._solve(state, evaluate, lambda u: unpack(u)[0],
+                           [(state.v + h * g)[free] for g in guesses], 0.5 * h)
 
 
 def _rotation_cap(rotation: FloatArray, max_rotation: float) -> float:
