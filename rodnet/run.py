@@ -227,8 +227,10 @@ def run(scene: Scene, directory: str | Path | None = None, *, progress: bool | N
 
 def _integrate(p: Prepared, recorder: Recorder, bar: Progress, stats: StepStats) -> StepStats:
     sim = p.scene.simulation
+    # an adaptive dynamic run halves a step on which Newton stalls instead of iterating on
     options = NewtonOptions(rtol=min(sim.rtol, 1e-6) * 1e-2,
-                            reuse_factorization=sim.reuse_factorization)
+                            reuse_factorization=sim.reuse_factorization,
+                            stall_iterations=4 if sim.adaptive and sim.type == "dynamic" else None)
     if sim.type == "static":
         return solve_static(p.model, p.q0, sim.load_steps, options, recorder, stats=stats)
     if p.scene.integrator == "rk45":

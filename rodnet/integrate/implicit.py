@@ -16,6 +16,8 @@ c = (1 - alpha_f) / (1 - alpha_m). The consistent start is a0 = vd0 = -M^-1 g(q0
 
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -346,7 +348,8 @@ def integrate_implicit(stepper: Stepper, q0: Any, v0: FloatArray, times: NDArray
                        stats: StepStats | None = None) -> StepStats:
     """March from ``times[0]`` to ``times[-1]`` landing on every frame time.
 
-    Adaptive: a step whose Newton solve fails is retried with half the step. With an
+    Adaptive: a step whose Newton solve fails is retried with half the step, and the steps after
+    it may grow by at most 1.2 per accepted step from there. With an
     ``error_tolerance`` [m] and a scheme that estimates its local error
     (:meth:`Stepper.local_error`), a step whose estimate exceeds the tolerance is rejected and
     every step is resized by ``0.9 (tolerance / error)^(1/3)`` (within 0.2 ... 2; no growth after
@@ -363,6 +366,7 @@ def integrate_implicit(stepper: Stepper, q0: Any, v0: FloatArray, times: NDArray
     state = stepper.initial(q0, v0, float(times[0]))
     on_frame(float(times[0]), state.q, state.v)
     t, h, easy = float(times[0]), dt, 0
+    newton_limit = math.inf  # below a step Newton just failed on; relaxed by 1.2 per step
     controlled = adaptive and error_tolerance is not None
     frame_gap = float(np.diff(times).max(initial=dt))
     dt_max = max(dt, frame_gap) if dt_max is None else max(dt, dt_max)
@@ -383,6 +387,7 @@ def integrate_implicit(stepper: Stepper, q0: Any, v0: FloatArray, times: NDArray
                         f"{result.message}" + ("" if adaptive else "; reduce simulation.dt or set "
                                                "simulation.adaptive = true"))
                 h, easy = h_try / 2, 0
+                newton_limit = h
                 continue
             travel = step_travel(state.q, new.q) if step_travel is not None else 0.0
             if travel > 1.0:  # a point near a body moved too far: it could pass through it
@@ -408,6 +413,8 @@ def integrate_implicit(stepper: Stepper, q0: Any, v0: FloatArray, times: NDArray
                 h = min(max(h_try * factor, h if h_try < h and factor >= 1.0 else 0.0), dt_max)
             state, t = new, t + h_try
             stats.record_step(h_try)
+            newton_limit *= 1.2
+            h = min(h, newton_limit)
             if after_step is not None:
                 after_step(state.q, state.v, h_try, stats)
             if adaptive and not (controlled and np.isfinite(error)):  # growth on easy Newton

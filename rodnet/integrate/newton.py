@@ -14,11 +14,13 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 import numpy as np
+import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 from scipy.linalg.lapack import dgbtrf as _gbtrf, dgbtrs as _gbtrs, dgetrf as _getrf, dgetrs as _getrs
 
 from rodnet.assembly import DENSE_LIMIT, BandedMatrix, IterationMatrix
+from rodnet.sparse_lu import StaticPatternLU
 
 FloatArray = NDArray[np.float64]
 
@@ -36,6 +38,11 @@ class NewtonOptions:
     reuse_contraction: float = 0.3
     max_rotation: float = np.pi / 4
     xtol: float = 1e-7
+    stall_iterations: int | None = None
+    """When set: give up after this many iterations if the residual has not fallen below
+    ``stall_contraction`` times its starting value (an adaptive stepper then halves the step
+    rather than spending the remaining iterations on a step too large for Newton)."""
+    stall_contraction: float = 0.5
 
 
 @dataclass
@@ -51,9 +58,10 @@ class NewtonResult:
 class LinearSolver:
     """LU of the iteration matrix, kept between calls until refreshed.
 
-    A CSR matrix is factorised by dense LAPACK below ``dense_limit`` unknowns (a single thread of
-    a few dozen elements: there SuperLU's set-up costs more than the factorisation) and by sparse
-    SuperLU above. A model may instead hand over its matrix already in LAPACK's band storage
+    A CSR matrix is factorised by dense LAPACK below ``dense_limit`` unknowns and above by the
+    fixed-pattern sparse LU of :mod:`rodnet.sparse_lu` once its pattern has come twice in a row
+    (the analysis is then reused for every later matrix of that pattern), by SuperLU otherwise
+    and whenever the fixed-pattern LU meets a (nearly) zero pivot. A model may instead hand over its matrix already in LAPACK's band storage
     (:class:`~rodnet.assembly.BandedMatrix`) or as a dense array, which are factorised as given.
     """
 
@@ -62,11 +70,13 @@ class LinearSolver:
     def __init__(self) -> None:
         self.lu: Any = None
         self.factorizations = 0
+        self._static: StaticPatternLU | None = None
+        self._seen_pattern: tuple[NDArray[np.int32], NDArray[np.int32]] | None = None
 
     def factorize(self, matrix: IterationMatrix) -> None:
         """Factorise. A band matrix is factorised in place (its storage is overwritten), a dense
         one on a copy. For SuperLU the symmetric ordering with diagonal pivots suits the (nearly
-        symmetric, pattern-symmetric) tangents, partial pivoting is the fall-back.
+        symmetric, pattern-symmetric) tangents, partial pivoting is its fall-back.
 
         Raises
         ------
@@ -87,6 +97,10 @@ class LinearSolver:
         if matrix.shape[0] <= self.dense_limit:
             self.lu = _DenseLU(matrix.toarray())
             return
+        static = self._static_lu(matrix)
+        if static is not None and static.factorize(matrix):
+            self.lu = static
+            return
         csc = matrix.tocsc()
         try:
             self.lu = spla.splu(csc, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
@@ -101,6 +115,22 @@ class LinearSolver:
     def solve(self, rhs: FloatArray) -> FloatArray:
         assert self.lu is not None
         return self.lu.solve(rhs)
+
+    def _static_lu(self, matrix: sp.csr_matrix) -> StaticPatternLU | None:
+        """The fixed-pattern LU for ``matrix``'s pattern, analysed when the same pattern comes a
+        second time in a row (a pattern seen once may never come back)."""
+        if self._static is not None and self._static.matches(matrix):
+            return self._static
+        seen = self._seen_pattern
+        self._seen_pattern = (matrix.indptr, matrix.indices)
+        if seen is None or not (np.array_equal(seen[0], matrix.indptr)
+                                and np.array_equal(seen[1], matrix.indices)):
+            return None
+        try:
+            self._static = StaticPatternLU(matrix)
+        except ValueError:  # not structurally symmetric
+            self._static = None
+        return self._static
 
 
 class _DenseLU:
@@ -165,14 +195,14 @@ def newton(evaluate: Callable[[FloatArray, bool], tuple[FloatArray, IterationMat
         the caller's length and angle tolerances. The line search computes the next (simplified)
         Newton correction at the new iterate; when that is small, the iterate is within it of the
         solution and is accepted, even if the residual test, relative to a force scale, is
-        stricter than the configuration needs.
+        stricter than the configuration needs; only when the residual fell in that iteration.
     """
     u = np.array(u0, dtype=float)
     start_factorizations = solver.factorizations
     tol = options.atol + options.rtol * scale
     fresh = not options.reuse_factorization or solver.lu is None
     r, S = evaluate(u, fresh)
-    norm = _max_abs(r)
+    norm = first_norm = _max_abs(r)
     # the active set only decides whether a kept factorisation may be reused
     track = options.reuse_factorization and active_set is not None
     fingerprint = active_set(u) if track else 0
@@ -182,6 +212,11 @@ def newton(evaluate: Callable[[FloatArray, bool], tuple[FloatArray, IterationMat
                                 norm, "non-finite residual")
         if norm <= tol:
             return NewtonResult(u, True, iteration - 1, solver.factorizations - start_factorizations, norm)
+        if (options.stall_iterations is not None and iteration > options.stall_iterations
+                and norm > options.stall_contraction * first_norm):
+            return NewtonResult(u, False, iteration - 1, solver.factorizations - start_factorizations,
+                                norm, f"stalled: residual {norm:.3g} N after {iteration - 1} "
+                                f"iterations, from {first_norm:.3g} N")
         if fresh:
             if S is None:
                 _, S = evaluate(u, True)
@@ -196,8 +231,11 @@ def newton(evaluate: Callable[[FloatArray, bool], tuple[FloatArray, IterationMat
         u, r_new, norm_new, next_du = _line_search(evaluate, solver, u, du)
         if on_accept is not None:
             on_accept(u)
-        if increment_small is not None and next_du is not None and increment_small(next_du):
-            # the correction is already solved for: apply it (a simplified Newton step)
+        if (increment_small is not None and next_du is not None and norm_new < norm
+                and increment_small(next_du)):
+            # the correction is already solved for: apply it (a simplified Newton step). Only
+            # while the residual falls: when a thread turns taut within the step the old
+            # matrix can make the correction look small although the residual has grown
             return NewtonResult(u + next_du, True, iteration,
                                 solver.factorizations - start_factorizations, norm_new)
         contraction = norm_new / norm if norm > 0 else 0.0
