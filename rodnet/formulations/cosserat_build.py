@@ -69,6 +69,67 @@ def support_dofs(names: tuple[str, ...], node: int, rotation: int, n_nodes: int)
     return dofs
 
 
+def align_quaternion_signs(quat_nodes: FloatArray, rot_nodes: NDArray[np.int64],
+                           end_offset: FloatArray | None) -> tuple[FloatArray, FloatArray | None]:
+    """Signs of the node quaternions (and of the end offsets) that start every element's
+    relative rotation on its short branch.
+
+    The relative rotation vector is the logarithm of ``conj(q1) q2`` on the quaternion double
+    cover (C11): it follows the rotations continuously past pi, so it starts where the sign of
+    each quaternion puts it, and ``q`` and ``-q`` differ by a full turn. The elements must start
+    with ``w >= 0``. Node signs are propagated along a spanning tree of the elements; an element
+    closing a loop with the wrong sign (a ring whose triads turn once around) gets an end
+    offset of ``-1`` (the identity rotation with the other sign).
+
+    Parameters
+    ----------
+    quat_nodes : (R, 4) float
+    rot_nodes : (E, 2) int
+    end_offset : (E, 2, 4) float or None
+
+    Returns
+    -------
+    quat_nodes : (R, 4) float
+    end_offset : (E, 2, 4) float or None
+    """
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import breadth_first_order
+
+    def relative_w(q: FloatArray, offset: FloatArray | None) -> FloatArray:
+        ends = q[rot_nodes]
+        if offset is not None:
+            ends = so3.quat_multiply(ends, offset)
+        return np.einsum("ei,ei->e", ends[:, 0], ends[:, 1])
+
+    q = quat_nodes.copy()
+    if np.all(relative_w(q, end_offset) >= 0.0):
+        return q, end_offset
+    if end_offset is None:
+        n = len(q)
+        a, b = rot_nodes[:, 0], rot_nodes[:, 1]
+        graph = sp.csr_matrix((np.ones(2 * len(a)), (np.r_[a, b], np.r_[b, a])), shape=(n, n))
+        sign = np.zeros(n)
+        for root in range(n):
+            if sign[root]:
+                continue
+            order, parent = breadth_first_order(graph, root, directed=False)
+            sign[root] = 1.0
+            for node in order[1:]:
+                p = parent[node]
+                sign[node] = sign[p] * (1.0 if q[p] @ q[node] >= 0.0 else -1.0)
+        q *= sign[:, None]
+        wrong = relative_w(q, None) < 0.0
+        if not wrong.any():
+            return q, None
+        end_offset = np.zeros((len(rot_nodes), 2, 4))
+        end_offset[:, :, 0] = 1.0
+    else:
+        end_offset = end_offset.copy()
+        wrong = relative_w(q, end_offset) < 0.0
+    end_offset[wrong, 1] *= -1.0
+    return q, end_offset
+
+
 def residual_bending_shear(stiffness: FloatArray, rest_length: FloatArray) -> FloatArray:
     """Section stiffnesses with the shear stiffness lowered by the residual bending flexibility
     of each element (FORMULATION.md, C44): ``1/GA_eff = 1/GA + Le^2 / (12 EI)``.
@@ -128,7 +189,8 @@ def build_cosserat(scene: Scene, structure: Structure) -> tuple[CosseratModel, R
         np.add.at(node_mass, seg[:, end], 0.5 * rho_a * le)
         np.add.at(rotary, seg[:, end], 0.5 * le[:, None] * rho_i[:, None] * np.array([2.0, 1.0, 1.0]))
     R0 = node_triads(structure.rest_positions, seg, structure.thread)
-    quat0 = so3.quat_from_matrix(R0)
+    quat0, end_offset = align_quaternion_signs(so3.quat_from_matrix(R0), seg, None)
+    ends0 = quat0[seg] if end_offset is None else so3.quat_multiply(quat0[seg], end_offset)
     free = np.ones(6 * n, bool)
     for i, s in enumerate(scene.supports):
         node = structure.node(s.node, f"supports[{i}].node")
@@ -137,14 +199,14 @@ def build_cosserat(scene: Scene, structure: Structure) -> tuple[CosseratModel, R
                           dtype=np.int64)
     model = CosseratModel(
         pos_nodes=seg, rot_nodes=seg, rest_length=le,
-        reference_strain=reference_strains(le, structure.rest_positions[seg], quat0[seg]),
+        reference_strain=reference_strains(le, structure.rest_positions[seg], ends0),
         stiffness=stiffness, tau=tau, node_mass=node_mass, rotary_inertia=rotary, free=free,
         gravity=np.asarray(scene.simulation.gravity, float), load_nodes=load_nodes,
         load_force=np.array([l.force for l in scene.loads], float).reshape(-1, 3),
         load_moment=np.array([l.moment for l in scene.loads], float).reshape(-1, 3),
         load_ramp=np.array([l.ramp for l in scene.loads], float),
         tension_only=scene.model.axial == "tension-only", kink_strain=scene.model.kink_strain,
-        size=structure.size)
+        end_offset=end_offset, size=structure.size)
     v0 = np.zeros(6 * n)
     v0[:3 * n] = structure.velocities.ravel()
     v0[~free] = 0.0

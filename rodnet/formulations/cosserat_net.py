@@ -32,7 +32,7 @@ from numpy.typing import NDArray
 from rodnet.config import Scene
 from rodnet.errors import SceneError
 from rodnet.formulations.cosserat import CosseratModel, RodConfiguration
-from rodnet.formulations.cosserat_build import support_dofs
+from rodnet.formulations.cosserat_build import align_quaternion_signs, support_dofs
 from rodnet.kernels import so3
 from rodnet.kernels.cosserat_strain import reference_strains, strain_matrix
 from rodnet.topology import Structure, in_plane_axes
@@ -93,7 +93,8 @@ def build_cosserat_net(scene: Scene, structure: Structure, section: dict[str, Fl
         in_node = np.einsum("eij,ej,ekj->eik", offset_R[:, end], inertia_end, offset_R[:, end])
         np.add.at(rotary, rot_nodes[:, end], np.diagonal(in_node, axis1=1, axis2=2))
 
-    quat_nodes = so3.quat_from_matrix(R_nodes)
+    quat_nodes, end_offset = align_quaternion_signs(so3.quat_from_matrix(R_nodes), rot_nodes,
+                                                    end_offset)
     quat_ends = quat_nodes[rot_nodes]
     if end_offset is not None:
         quat_ends = so3.quat_multiply(quat_ends, end_offset)

@@ -200,8 +200,9 @@ def _cross(a0, a1, a2, b0, b1, b2):  # pragma: no cover - compiled
 def _kinematics(x, q, e):  # pragma: no cover - compiled
     """``psi``, ``R_m`` (row-major 9-tuple) and ``g`` of element ``e`` (§Kinematics).
 
-    As :func:`rodnet.kernels.cosserat_strain.kinematics`: ``psi = log(conj(q1) q2)`` with
-    ``w >= 0``, ``R_m = R(q1 exp_q(psi/2))``, ``g = R_m^T (x2 - x1)``.
+    As :func:`rodnet.kernels.cosserat_strain.kinematics`: ``psi = log(conj(q1) q2)`` on the
+    quaternion double cover (angle in [0, 2 pi), C11), ``R_m = R(q1 exp_q(psi/2))``,
+    ``g = R_m^T (x2 - x1)``.
     """
     w1, x1, y1, z1 = q[e, 0, 0], q[e, 0, 1], q[e, 0, 2], q[e, 0, 3]
     w2, x2, y2, z2 = q[e, 1, 0], q[e, 1, 1], q[e, 1, 2], q[e, 1, 3]
@@ -211,9 +212,7 @@ def _kinematics(x, q, e):  # pragma: no cover - compiled
     rx = w1 * x2 + cx * w2 + cy * z2 - cz * y2
     ry = w1 * y2 - cx * z2 + cy * w2 + cz * x2
     rz = w1 * z2 + cx * y2 - cy * x2 + cz * w2
-    # logarithm (rotvec_from_quat)
-    if rw < 0.0:
-        rw, rx, ry, rz = -rw, -rx, -ry, -rz
+    # logarithm on the double cover (rotvec_from_quat with shortest=False): no sign flip
     s = np.sqrt(rx * rx + ry * ry + rz * rz)
     if s < 1e-6 * rw:
         t = s / rw

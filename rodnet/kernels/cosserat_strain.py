@@ -56,13 +56,14 @@ def kinematics(x: FloatArray, q: FloatArray) -> tuple[FloatArray, FloatArray, Fl
     Returns
     -------
     psi : (n, 3)
-        ``log(R1^T R2)``, angle in [0, pi].
+        ``log(conj(q1) q2)`` on the quaternion double cover, angle in [0, 2 pi) (C11): it
+        follows the quaternions continuously past pi.
     R_m : (n, 3, 3)
         Midpoint triad ``R1 exp(hat(psi/2))``.
     g : (n, 3)
         ``R_m^T (x2 - x1)``, the chord in midpoint-triad components.
     """
-    psi = rotvec_from_quat(quat_multiply(quat_conjugate(q[:, 0]), q[:, 1]))
+    psi = rotvec_from_quat(quat_multiply(quat_conjugate(q[:, 0]), q[:, 1]), shortest=False)
     R_m = quat_to_matrix(quat_multiply(q[:, 0], quat_from_rotvec(0.5 * psi)))
     g = np.einsum("nji,nj->ni", R_m, x[:, 1] - x[:, 0])
     return psi, R_m, g

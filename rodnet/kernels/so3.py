@@ -99,13 +99,17 @@ def quat_from_rotvec(theta: FloatArray) -> FloatArray:
     return np.concatenate([np.cos(0.5 * phi), 0.5 * np.sinc(phi / (2.0 * np.pi)) * theta], axis=-1)
 
 
-def rotvec_from_quat(q: FloatArray) -> FloatArray:
-    """Logarithm: rotation vector, angle in [0, pi], of a quaternion: (..., 4) -> (..., 3).
+def rotvec_from_quat(q: FloatArray, shortest: bool = True) -> FloatArray:
+    """Logarithm: rotation vector of a quaternion: (..., 4) -> (..., 3).
 
-    The sign of ``q`` is chosen with ``w >= 0`` (the shorter of the two equivalent rotations), and
-    ``2 atan2(|v|, w)`` is accurate at every angle, including 0 and pi. ``q`` need not be unit.
+    ``shortest``: the sign of ``q`` is chosen with ``w >= 0``, the shorter of the two equivalent
+    rotations, angle in [0, pi]. Otherwise the logarithm on the double cover: ``q`` and ``-q``
+    give rotation vectors of angles ``a`` and ``2 pi - a`` about opposite axes, angle in
+    [0, 2 pi]. ``2 atan2(|v|, w)`` is accurate at every angle, including 0 and pi. ``q`` need not
+    be unit.
     """
-    q = np.where(q[..., :1] < 0.0, -q, q)
+    if shortest:
+        q = np.where(q[..., :1] < 0.0, -q, q)
     w, v = q[..., :1], q[..., 1:]
     s = np.linalg.norm(v, axis=-1, keepdims=True)
     small = s < 1e-6 * w

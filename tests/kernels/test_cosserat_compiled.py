@@ -1,8 +1,9 @@
 """The compiled Cosserat kernels against the NumPy path, element by element.
 
 Random states mix, per element, every branch of the two paths: relative rotations of exactly zero,
-below 1e-8 (series logarithm), on both sides of the series switches of the coefficients, and up to
-within 1e-6 of pi, with either sign of the quaternions; axial strains slack, inside the tension-only
+below 1e-8 (series logarithm), on both sides of the series switches of the coefficients, up to
+within 1e-6 of pi and, with the second quaternion's sign flipped, past pi on the double cover
+(C11); both quaternions of an element may change sign together (nothing changes then); axial strains slack, inside the tension-only
 ramp and taut, and axial strain rates that make the Kelvin-Voigt total negative (clamp).
 
 The two paths take atan2 and tan from different libraries (NumPy's loops, libm), so their
@@ -73,10 +74,14 @@ def random_state(rng, n, tau):
     chord = np.array([1.0, 0.0, 0.0]) + 0.1 * rng.normal(size=(n, 3))
     x0 = np.stack([x1, x1 + rest_length[:, None] * chord], axis=1)
     reference_strain = cosserat.reference_strains(rest_length, x0, q0)
-    # deformed state; the quaternion of either node may have either sign
+    # deformed state; an element's quaternions may change sign together, and a second quaternion
+    # with the other sign turns the element by 2 pi - angle (between 3.3 and 6 rad here)
     q1 = random_quats(rng, n)
-    q2 = so3.retract(q1, unit_vectors(rng, n) * relative_angles(rng, n)[:, None])
-    q = np.stack([q1, q2], axis=1) * rng.choice([-1.0, 1.0], size=(n, 2, 1))
+    angles = relative_angles(rng, n)
+    q2 = so3.retract(q1, unit_vectors(rng, n) * angles[:, None])
+    past_pi = (angles > 0.3) & (angles < 3.0) & (rng.random(n) < 0.3)
+    q2[past_pi] *= -1.0
+    q = np.stack([q1, q2], axis=1) * rng.choice([-1.0, 1.0], size=(n, 1, 1))
     gamma = np.column_stack([axial_strains(rng, n), 0.1 * rng.normal(size=(n, 2))])
     x = set_chord(x0 + rng.normal(size=x0.shape), q, rest_length, reference_strain, gamma)
     stiffness = rng.uniform(0.5, 2.0, (n, 6)) * np.array([10.0, 4.0, 4.0, 1.0, 1.5, 1.5])
@@ -116,9 +121,11 @@ def test_states_cover_the_branches(case):
     angle = np.linalg.norm(kinematics(x, q)[0], axis=1)
     assert np.any(angle == 0.0) and np.any((angle > 0.0) & (angle < 1e-8))
     assert np.any((angle > 0.01) & (angle < 0.5)) and np.any((angle > 0.5) & (angle < 3.0))
-    assert np.any(angle > np.pi - 1e-5)
-    # w of conj(q1) q2 is negative: the logarithm flips the sign
-    assert np.any(q[:, 0, 0] * q[:, 1, 0] + np.sum(q[:, 0, 1:] * q[:, 1, 1:], axis=1) < 0.0)
+    assert np.any((angle > np.pi - 1e-5) & (angle < np.pi))
+    # w of conj(q1) q2 is negative: the relative rotation has passed pi
+    w = q[:, 0, 0] * q[:, 1, 0] + np.sum(q[:, 0, 1:] * q[:, 1, 1:], axis=1)
+    assert np.any(w < 0.0) and np.all((angle > np.pi) == (w < 0.0))
+    assert np.any(angle > 5.0)
     psi, R_m, g = kinematics(x, q)
     strain = cosserat.strains(rest_length, reference_strain, x, q)
     e = strain[:, 0]

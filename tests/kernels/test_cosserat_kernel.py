@@ -286,9 +286,10 @@ def test_compiled_and_numpy_tangents_agree(name):
         np.testing.assert_allclose(a, b, rtol=0, atol=1e-12 * np.abs(b).max())
 
 
-@pytest.mark.parametrize("angle", [0.0, 1e-9, np.pi - 1e-3])
+@pytest.mark.parametrize("angle", [0.0, 1e-9, np.pi - 1e-3, np.pi + 1e-3, 4.5, 2 * np.pi - 0.3])
 def test_tangent_at_the_ends_of_the_relative_rotation_range(angle):
-    """Identical node frames (psi = 0 exactly) and nearly opposite ones stay finite and exact."""
+    """Identical node frames (psi = 0 exactly), nearly opposite ones and relative rotations past
+    pi on the quaternion double cover (C11) stay finite and exact."""
     rng = np.random.default_rng(7)
     n = 5
     rest_length, x, q0, ref = stress_free(rng, n, curved=False)
@@ -301,6 +302,8 @@ def test_tangent_at_the_ends_of_the_relative_rotation_range(angle):
     _, K, _ = cosserat.internal_force_and_tangents(*model, x, q, velocity, LINEAR, 1e-3)
     force_at = lambda xx, qq: cosserat.internal_force(  # noqa: E731
         *model, xx, qq, velocity, LINEAR, 1e-3)
+    psi = cosserat.strains(rest_length, ref, x, q)[:, 3:] * rest_length[:, None]
+    np.testing.assert_allclose(np.linalg.norm(psi, axis=1), angle, rtol=1e-9, atol=1e-15)
     fd = lie_gradient(force_at, x, q, 1e-7)
     assert np.all(np.isfinite(K))
     assert np.all(relative_error(K, fd) < 1e-6)

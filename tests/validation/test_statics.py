@@ -400,3 +400,26 @@ def test_unsupported_static_rod_message_names_the_missing_support(tmp_path: Path
     status, err = run_unsupported(tmp_path, capsys, supports)
     assert status == 2 and "bad input" in err and "[[supports]]" in err and "zero mode" in err
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("elements", [1, 2])
+def test_twist_past_half_a_turn_per_element(tmp_path: Path, elements: int) -> None:
+    """A clamped rod twisted by an end moment M turns by M L / (G J), linear in M at any angle:
+    here 1.5 pi per element, where the shortest-rotation logarithm would jump to -0.5 pi and
+    reverse the torque (C11: the relative rotation lives on the quaternion double cover)."""
+    diameter, length = 0.01, 1.0
+    gj = E / (2 * (1 + NU)) * np.pi * diameter**4 / 32
+    angle = 1.5 * np.pi * elements
+    text = rod_toml(diameter, elements, (("beam:start", "clamp"),), steps=12)
+    text = text.replace("[output]", f'[[loads]]\nnode = "beam:end"\nmoment = [{gj * angle / length}, 0.0, 0.0]\n\n[output]')
+    result = run(scene_from_toml(text), tmp_path, progress=False)
+    assert result.status == "ok", result.message
+    q = result.arrays["rotations"]                  # (frames, nodes, 4); the clamped node 0 stays
+    relative = so3.quat_multiply(so3.quat_conjugate(q[:, 0]), q[:, -1])
+    twist = so3.rotvec_from_quat(relative, shortest=False)          # (frames, 3), material axes
+    loads = result.arrays["time"]                                   # load factors 1/12 ... 1
+    # a quaternion repeats after 4 pi: compare the end's twist modulo that
+    difference = np.mod(twist[:, 0] - loads * angle + 2 * np.pi, 4 * np.pi) - 2 * np.pi
+    assert np.abs(difference).max() < 1e-8 * angle
+    assert np.abs(twist[:, 1:]).max() < 1e-9
+    assert np.abs(result.arrays["positions"][-1] - result.arrays["positions"][0]).max() < 1e-12
