@@ -251,24 +251,34 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
         "oriented (checked before the run; inward-facing meshes are flipped); it is translated "
         "so that its centre of volume is the body origin."),
     "bodies.mass": (
-        "kg", "> 0; give this or `density`, not both. Not used by fixed bodies (reported only)."),
+        "kg", "> 0; give this or `density`, not both. Required for a free body; a fixed body "
+        "only reports it."),
     "bodies.density": (
-        "kg/m^3", "> 0; the mass is `density` x the shape's volume. Not used by fixed bodies."),
-    "bodies.position": ("m", "World position of the body origin (its centre of mass)."),
+        "kg/m^3", "> 0; the mass is `density` x the shape's volume (a homogeneous body)."),
+    "bodies.inertia": (
+        "kg m^2", "Inertia tensor about the centre of mass in body axes: `[Ixx, Iyy, Izz]` "
+        "(principal moments along the body axes) or `[Ixx, Iyy, Izz, Ixy, Ixz, Iyz]` (tensor "
+        "components, `Ixy = -integral of x y dm`). Positive definite, and no principal moment "
+        "above the sum of the other two. Not set: that of the homogeneous shape with the body's "
+        "mass (closed form for box, cylinder and sphere; trimesh's polyhedral integrals for a "
+        "mesh). Needs `mass` or `density`."),
+    "bodies.position": ("m", "World position of the body origin (its centre of mass) at t = 0."),
     "bodies.orientation_deg": (
         "deg", "Rotations about the fixed world x, y and z axes, applied in that order "
         "(`R = R_z R_y R_x`); `R` maps body axes to world axes."),
     "bodies.velocity": (
-        "m/s", "Initial velocity of the body; must be `[0, 0, 0]` while bodies are fixed."),
+        "m/s", "Initial velocity of the centre of mass of a free body; `[0, 0, 0]` for a fixed "
+        "body."),
     "bodies.angular_velocity_deg": (
-        "deg/s", "Initial angular velocity in body axes; must be `[0, 0, 0]` while bodies are "
-        "fixed."),
+        "deg/s", "Initial angular velocity (tumbling rate) of a free body in body axes; "
+        "`[0, 0, 0]` for a fixed body."),
     "bodies.fixed": (
         "", "`true`: the body is held in place and never moves (its pose is constant in the "
-        "results). This version supports fixed bodies only: `false` (the default, a free "
-        "6-DOF body) is refused with an error. Contact with bodies needs the lumped model or "
-        "cable threads and an `explicit` or implicit integrator (not `rk45`); a body that "
-        "touches a thread at the start is refused, naming the first node inside it."),
+        "results). `false` (the default): a free 6-DOF rigid body moved by contact and gravity "
+        "(needs `mass` or `density`, and the `explicit` integrator; refused with implicit "
+        "integrators and static runs). Contact with bodies needs the lumped model or cable "
+        "threads and an `explicit` or (fixed bodies only) implicit integrator, not `rk45`; a body "
+        "that touches a thread at the start is refused, naming the first node inside it."),
     # [contact]
     "contact.stiffness": (
         "N/m", "Penalty stiffness `k` > 0 per contact point: `N = k delta` at a penetration "
@@ -337,8 +347,9 @@ Equation numbers (S1)-(S10) refer to
 means `model.type = "cosserat"` with `bending` or `torsion` on; "cable threads" means
 `model.type = "cosserat"` with both off, which runs the lumped model's equations.
 
-Rigid bodies (`[[bodies]]`) must be `fixed = true` in this version, and contact with them
-(`[contact]`) is modelled for the lumped model and cable threads; see [contact](contact.md).
+Rigid bodies (`[[bodies]]`) are free unless `fixed = true`; free bodies move with the `explicit`
+integrator only. Contact with bodies (`[contact]`) is modelled for the lumped model and cable
+threads; see [contact](contact.md).
 Keys that only one model or one kind of run uses are read and checked by all; the descriptions
 say where a key has no effect.
 """

@@ -35,6 +35,17 @@ def _non_negative(obj: Any, *keys: str) -> None:
         require(math.isfinite(value) and value >= 0, key, value, "must be a finite number >= 0")
 
 
+def _principal_moments(values: tuple[float, ...]) -> list[float]:
+    """Ascending eigenvalues of the symmetric 3 x 3 tensor given by 3 diagonal or 6 components
+    [xx, yy, zz, xy, xz, yz]."""
+    import numpy as np
+
+    xx, yy, zz = values[:3]
+    xy, xz, yz = values[3:] if len(values) == 6 else (0.0, 0.0, 0.0)
+    tensor = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]], dtype=float)
+    return [float(m) for m in np.linalg.eigvalsh(tensor)]
+
+
 def _finite_vector(obj: Any, *keys: str) -> None:
     for key in keys:
         value = getattr(obj, key)
@@ -302,7 +313,7 @@ class MassSpec:
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class BodySpec:
-    """``[[bodies]]``: a rigid body the threads touch; this version holds every body fixed."""
+    """``[[bodies]]``: a rigid body the threads touch, free (6 DOF, the default) or fixed."""
 
     name: str
     shape: Literal["box", "cylinder", "sphere", "mesh"]
@@ -310,6 +321,7 @@ class BodySpec:
     file: str | None = None
     mass: float | None = None
     density: float | None = None
+    inertia: tuple[float, ...] | None = None
     position: Vec3 = (0.0, 0.0, 0.0)
     orientation_deg: Vec3 = (0.0, 0.0, 0.0)
     velocity: Vec3 = (0.0, 0.0, 0.0)
@@ -333,12 +345,40 @@ class BodySpec:
         require(self.mass is None or self.density is None, "density", self.density,
                 "give either mass or density, not both")
         _finite_vector(self, "position", "orientation_deg", "velocity", "angular_velocity_deg")
-        require(self.fixed, "fixed", self.fixed, "free bodies are not supported yet: set "
-                "fixed = true (the body is held in place; free 6-DOF bodies come later)")
-        require(not any(self.velocity), "velocity", self.velocity,
-                "must be [0, 0, 0] for a fixed body")
-        require(not any(self.angular_velocity_deg), "angular_velocity_deg",
-                self.angular_velocity_deg, "must be [0, 0, 0] for a fixed body")
+        if self.inertia is not None:
+            self._check_inertia()
+        if self.fixed:
+            require(not any(self.velocity), "velocity", self.velocity,
+                    "must be [0, 0, 0] for a fixed body")
+            require(not any(self.angular_velocity_deg), "angular_velocity_deg",
+                    self.angular_velocity_deg, "must be [0, 0, 0] for a fixed body")
+        else:
+            require(self.mass is not None or self.density is not None, "mass", self.mass,
+                    "a free body (fixed = false) needs its mass: give mass [kg] > 0 or "
+                    "density [kg/m^3] > 0, or set fixed = true")
+
+    def _check_inertia(self) -> None:
+        """``inertia``: 3 principal moments along the body axes, or the 6 components
+        [Ixx, Iyy, Izz, Ixy, Ixz, Iyz] of the tensor about the centre of mass [kg m^2]; positive
+        definite and a possible mass distribution (each principal moment at most the sum of the
+        other two)."""
+        values = self.inertia
+        assert values is not None
+        require(len(values) in (3, 6), "inertia", list(values),
+                "must be [Ixx, Iyy, Izz] (principal moments along the body axes) or "
+                "[Ixx, Iyy, Izz, Ixy, Ixz, Iyz] [kg m^2], about the centre of mass")
+        require(self.mass is not None or self.density is not None, "inertia", list(values),
+                "needs the body's mass too: give mass or density")
+        require(all(v > 0.0 for v in values[:3]), "inertia", list(values),
+                "the moments of inertia Ixx, Iyy, Izz must be > 0 [kg m^2]")
+        moments = _principal_moments(values)
+        require(moments[0] > 1e-12 * moments[2], "inertia", list(values),
+                "must be positive definite: its principal moments are "
+                f"{[float(f'{m:.6g}') for m in moments]} kg m^2")
+        require(moments[2] <= (moments[0] + moments[1]) * (1.0 + 1e-9), "inertia", list(values),
+                "is not the inertia of any mass distribution: the largest principal moment "
+                f"{moments[2]:.6g} exceeds the sum of the other two "
+                f"({moments[0]:.6g} + {moments[1]:.6g}) kg m^2")
 
     def _check_size(self) -> None:
         size = self.size

@@ -4,9 +4,10 @@
 :class:`BodyContact`: one shape per body (:mod:`rodnet.contact.geometry`, :mod:`rodnet.contact.mesh`),
 its pose, the penalty law, the radius of every thread segment and the per-step travel limit that
 keeps thread points from jumping over a body. It refuses a body that overlaps a thread at the
-start, naming the body and the first node inside it. Every body of this version is fixed: its
-pose is constant and its material points do not move. The arrays the compiled explicit loop takes
-are built once by :meth:`BodyContact.kernel_arguments`. Equations:
+start, naming the body and the first node inside it. A fixed body keeps its pose; a free body has
+mass and inertia (from the shape, (G11)-(G12), or given) and its state in
+:attr:`BodyContact.motion`, which the explicit loop advances (:mod:`rodnet.contact.rigid_body`).
+The arrays the compiled explicit loop takes are built once by :meth:`BodyContact.kernel_arguments`. Equations:
 ``elements/contact/FORMULATION.md``; user documentation: ``docs/contact.md``.
 """
 
@@ -22,6 +23,7 @@ from numpy.typing import NDArray
 from rodnet.config import BodySpec, ContactSpec, Scene
 from rodnet.contact.geometry import Box, Cylinder, Shape, Sphere, shape_from_scene
 from rodnet.contact.laws import ContactLaw
+from rodnet.contact.rigid_body import BodyMotion, start_motion
 from rodnet.errors import SceneError
 from rodnet.kernels import so3
 from rodnet.topology import Structure
@@ -57,7 +59,9 @@ def euler_xyz_matrix(angles_deg: tuple[float, float, float]) -> tuple[FloatArray
 
 @dataclass(frozen=True, eq=False)
 class BodyContact:
-    """Fixed rigid bodies and the penalty contact of the threads with them (read-only arrays).
+    """Rigid bodies and the penalty contact of the threads with them.
+
+    Every array is read-only except those of ``motion``, the bodies' current state.
 
     Attributes
     ----------
@@ -68,13 +72,23 @@ class BodyContact:
     shapes : tuple of Shape
         Geometry in the body frame (origin at the centre of mass).
     position : (B, 3) float
-        World position of each body frame's origin [m].
+        World position of each body frame's origin (its centre of mass) at t = 0 [m].
     rotation : (B, 3, 3) float
-        Body-to-world rotations.
+        Body-to-world rotations at t = 0.
     quaternion : (B, 4) float
         The same rotations as unit quaternions (w, x, y, z).
     mass : (B,) float
-        Body mass [kg] from ``mass`` or ``density``; nan when neither is given.
+        Body mass [kg] from ``mass`` or ``density``; nan when neither is given (fixed bodies).
+    free : (B,) bool
+        True for a free body (``fixed = false``).
+    inertia : (B, 3, 3) float
+        Inertia about the centre of mass in body axes [kg m^2]; nan without a mass.
+    velocity : (B, 3) float
+        Velocity at t = 0 [m/s].
+    omega : (B, 3) float
+        Angular velocity at t = 0, world axes [rad/s].
+    gravity : (3,) float
+        Acceleration of gravity acting on the free bodies [m/s^2].
     law : ContactLaw
         Penalty normal law and velocity-regularised friction (``[contact]``).
     points_per_segment : int
@@ -99,7 +113,42 @@ class BodyContact:
     segments: IntArray
     radius: FloatArray
     travel_limit: FloatArray
+    free: NDArray[np.bool_]
+    inertia: FloatArray
+    velocity: FloatArray
+    omega: FloatArray
+    gravity: FloatArray
+    motion: BodyMotion = field(init=False, repr=False)
     _kernel: tuple = field(default=(), repr=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "motion", self.start_motion())
+
+    def start_motion(self) -> BodyMotion:
+        """A new state of every body at t = 0."""
+        inertia = np.where(self.free[:, None, None], self.inertia, 0.0)
+        return start_motion(self.position, self.quaternion, self.velocity, self.omega, inertia)
+
+    @property
+    def inv_mass(self) -> FloatArray:
+        """1 / mass of the free bodies, 0 for the fixed ones (B,) [1/kg]."""
+        return np.where(self.free, 1.0 / np.where(self.free, self.mass, 1.0), 0.0)
+
+    @property
+    def inv_inertia(self) -> FloatArray:
+        """Inverse inertia in body axes of the free bodies, 0 for the fixed ones (B, 3, 3)."""
+        out = np.zeros((self.n_bodies, 3, 3))
+        out[self.free] = np.linalg.inv(self.inertia[self.free])
+        return out
+
+    def compliance(self) -> FloatArray:
+        """Largest compliance of each body at a point within its bounding sphere,
+        ``1/m + r_b^2 / I_min`` (B,) [1/kg]; 0 for fixed bodies, (E1)."""
+        out = np.zeros(self.n_bodies)
+        for b in np.flatnonzero(self.free):
+            r_b = float(np.linalg.norm(np.abs(self.shapes[b].bounds).max(axis=0)))
+            out[b] = 1.0 / self.mass[b] + r_b**2 / float(np.linalg.eigvalsh(self.inertia[b])[0])
+        return out
 
     @property
     def n_bodies(self) -> int:
@@ -115,9 +164,19 @@ class BodyContact:
         node_share = _node_share(self.segments, len(inv_mass), self.points_per_segment)
         return (inv_mass, self.segments, self.radius, node_share, *self._kernel)
 
+    def kernel_motion(self, motion: BodyMotion | None = None) -> tuple[FloatArray, ...]:
+        """Pose and velocities of :func:`~rodnet.kernels.contact_compiled.accumulate_contact`
+        after the law's scalars: position, rotation, velocity, omega (of ``motion``, default the
+        current state)."""
+        m = self.motion if motion is None else motion
+        return m.position, m.rotation, m.velocity, m.omega
+
     def stable_step(self, inv_mass: FloatArray) -> float:
         """Stability limit [s] of symplectic Euler under the contact springs alone (inf when no
         node can move), (E1).
+
+        A free body adds ``k P c_b`` to the bound, ``P`` the number of contact points of the
+        model and ``c_b`` the body's largest compliance (:meth:`compliance`).
 
         Every candidate point is taken as touching at once with stiffness k and damping c. With
         ``w_p = (N_a / sqrt(m_a), N_b / sqrt(m_b))`` the mass-scaled shape functions of point p,
@@ -136,6 +195,10 @@ class BodyContact:
             np.add.at(row, a, k * wa * (wa + wb))
             np.add.at(row, b, k * wb * (wa + wb))
         omega2 = float(row.max(initial=0.0))
+        if self.free.any():
+            # a free body's own row: every point pressing on it at once, (E1)
+            points = len(inv_mass) + len(self.segments) * (n - 1)
+            omega2 += k * points * float(self.compliance().max())
         if omega2 <= 0.0:
             return math.inf
         omega = math.sqrt(omega2)
@@ -173,6 +236,18 @@ def _half_thickness(shape: Shape) -> float:
     return 0.5 * float(np.ptp(shape.bounds, axis=0).min())
 
 
+def _inertia(spec: BodySpec, shape: Shape, mass: float) -> FloatArray:
+    """Inertia about the centre of mass in body axes [kg m^2]: ``inertia`` of the scene, else
+    that of the homogeneous shape (G11)-(G12); nan without a mass."""
+    if spec.inertia is not None:
+        xx, yy, zz = spec.inertia[:3]
+        xy, xz, yz = spec.inertia[3:] if len(spec.inertia) == 6 else (0.0, 0.0, 0.0)
+        return np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]], dtype=np.float64)
+    if not math.isfinite(mass):
+        return np.full((3, 3), math.nan)
+    return np.asarray(shape.mass_properties(mass).inertia, dtype=np.float64)
+
+
 def _mass(spec: BodySpec, shape: Shape) -> float:
     if spec.mass is not None:
         return spec.mass
@@ -201,14 +276,22 @@ def build_body_contact(scene: Scene, structure: Structure) -> BodyContact | None
     radius = 0.5 * np.array([m.diameter for m in scene.materials])[structure.material]
     travel = TRAVEL_FRACTION * np.minimum(float(radius.min()),
                                           np.array([_half_thickness(s) for s in shapes]))
+    mass = np.array([_mass(b, s) for b, s in zip(scene.bodies, shapes)])
+    rotation = np.array([p[0] for p in poses])
+    omega_body = np.radians(np.array([b.angular_velocity_deg for b in scene.bodies], float))
     contact = BodyContact(
         names=tuple(b.name for b in scene.bodies), kinds=tuple(b.shape for b in scene.bodies),
         shapes=shapes, position=np.array([b.position for b in scene.bodies], dtype=np.float64),
-        rotation=np.array([p[0] for p in poses]), quaternion=np.array([p[1] for p in poses]),
-        mass=np.array([_mass(b, s) for b, s in zip(scene.bodies, shapes)]), law=law,
+        rotation=rotation, quaternion=np.array([p[1] for p in poses]), mass=mass, law=law,
         points_per_segment=spec.points_per_segment, segments=structure.segments,
-        radius=radius, travel_limit=travel)
-    for name in ("position", "rotation", "quaternion", "mass", "radius", "travel_limit"):
+        radius=radius, travel_limit=travel,
+        free=np.array([not b.fixed for b in scene.bodies], dtype=np.bool_),
+        inertia=np.array([_inertia(b, s, m) for b, s, m in zip(scene.bodies, shapes, mass)]),
+        velocity=np.array([b.velocity for b in scene.bodies], dtype=np.float64),
+        omega=np.einsum("bij,bj->bi", rotation, omega_body),
+        gravity=np.array(scene.simulation.gravity, dtype=np.float64))
+    for name in ("position", "rotation", "quaternion", "mass", "radius", "travel_limit", "free",
+                 "inertia", "velocity", "omega", "gravity"):
         getattr(contact, name).setflags(write=False)
     check_start_clear(contact, structure)
     return contact
@@ -259,7 +342,8 @@ def check_start_clear(contact: BodyContact, structure: Structure) -> None:
 
 def check_contact_supported(scene: Scene) -> None:
     """Refuse scenes with bodies that this version cannot run: Cosserat rods with bending or
-    torsion (contact is modelled for the lumped model and cable threads) and ``rk45``.
+    torsion (contact is modelled for the lumped model and cable threads), ``rk45``, and free
+    bodies in static runs or with an implicit integrator.
 
     Raises
     ------
@@ -277,3 +361,15 @@ def check_contact_supported(scene: Scene) -> None:
         raise SceneError("simulation.integrator", "rk45", "rk45 does not model contact; scenes "
                          "with [[bodies]] need 'explicit' or an implicit integrator "
                          "('generalized-alpha', 'backward-euler', 'midpoint')")
+    free = [i for i, b in enumerate(scene.bodies) if not b.fixed]
+    if not free:
+        return
+    which = f"bodies[{free[0]}] ('{scene.bodies[free[0]].name}') is free (fixed = false)"
+    if scene.simulation.type == "static":
+        raise SceneError("simulation.type", "static", f"{which}: a static run needs every body "
+                         "fixed; set fixed = true or run it with type = 'dynamic'")
+    if scene.integrator != "explicit":
+        raise SceneError("simulation.integrator", scene.integrator,
+                         f"{which}: free bodies move with the 'explicit' integrator only "
+                         "(model.type = 'lumped', or cable threads); use integrator = "
+                         "'explicit' or set fixed = true on every body")

@@ -107,6 +107,14 @@ def contact_points(endpoints: FloatArray, radius: FloatArray | float, position: 
     nodes = (np.arange(2 * n_segments).reshape(-1, 2) if segment_nodes is None
              else np.asarray(segment_nodes))
     reach = _reach(radius, n_segments, margin)
+    # bounding spheres first: far from the body, nothing more is computed
+    half = 0.5 * np.linalg.norm(endpoints[:, 1] - endpoints[:, 0], axis=1)
+    centre = np.linalg.norm(0.5 * (endpoints[:, 0] + endpoints[:, 1]) - position, axis=1)
+    body_radius = float(np.linalg.norm(np.abs(bounds).max(axis=0)))
+    if n_segments == 0 or not (centre - half - reach <= body_radius).any():
+        empty = np.zeros(0)
+        return ContactPoints(np.zeros(0, np.int64), empty, np.zeros((0, 3)), np.zeros((0, 3)),
+                             empty)
     cand = candidate_segments(endpoints, radius, position, rotation, bounds, margin)
     n = points_per_segment
     length = np.linalg.norm(endpoints[cand, 1] - endpoints[cand, 0], axis=1)

@@ -1,9 +1,11 @@
-"""Contact forces of fixed bodies on the nodes of a thread model, with their tangents (NumPy).
+"""Contact forces of rigid bodies on the nodes of a thread model, with their tangents (NumPy).
 
 The implicit integrators, static runs and the saved frames use these; the explicit loop runs the
 compiled equivalent (:mod:`rodnet.kernels.contact_compiled`, checked against this module). For
-every body: candidate points (B1)-(B2), geometry in the body frame, the point law (K1)-(K4) with
-velocity-regularised friction (F2), and distribution to the segment nodes (B5). The tangents come
+every body, at its current pose and velocity (``contact.motion``): candidate points (B1)-(B2),
+geometry in the body frame, the point law (K1)-(K4) with velocity-regularised friction (F2) on
+the velocity relative to the body's material point (B6), and distribution to the segment nodes
+(B5). The tangents hold the body still (implicit integrators run fixed bodies only). The tangents come
 as one 6 x 6 block per segment, the layout of the thread elements' own blocks, so they add to the
 element matrices before assembly. Equations: ``elements/contact/FORMULATION.md``.
 """
@@ -15,8 +17,9 @@ from typing import NamedTuple
 import numpy as np
 
 from rodnet.contact.bodies import BodyContact
-from rodnet.contact.broadphase import (ContactPoints, contact_points, distribute_force,
-                                       segment_blocks, shape_functions)
+from rodnet.contact.broadphase import (ContactPoints, body_point_velocity, body_reaction,
+                                       contact_points, distribute_force, segment_blocks,
+                                       shape_functions)
 from rodnet.contact.geometry import FloatArray, SurfaceQuery
 from rodnet.contact.laws import PointForces, contact_force
 
@@ -32,7 +35,7 @@ class BodyPoints(NamedTuple):
 
 def _world_query(contact: BodyContact, b: int, local: FloatArray) -> SurfaceQuery:
     """Query body ``b`` at body-frame points ``local`` (C, 3); results in world frame."""
-    R, p = contact.rotation[b], contact.position[b]
+    R, p = contact.motion.rotation[b], contact.motion.position[b]
     q = contact.shapes[b].query(local)
     gradient = np.einsum("ij,pjk,lk->pil", R, q.normal_gradient, R)
     return SurfaceQuery(q.distance, np.einsum("ij,pj->pi", R, q.normal),
@@ -41,21 +44,36 @@ def _world_query(contact: BodyContact, b: int, local: FloatArray) -> SurfaceQuer
 
 def body_points(contact: BodyContact, x: FloatArray, v: FloatArray) -> list[BodyPoints]:
     """Contact points and point forces for every body at positions ``x`` and velocities ``v``
-    (N, 3) (fixed bodies: the point velocity is the relative velocity)."""
+    (N, 3), with the bodies at ``contact.motion``."""
     endpoints = x[contact.segments]
+    motion = contact.motion
     out = []
     for b, shape in enumerate(contact.shapes):
-        points = contact_points(endpoints, contact.radius, contact.position[b],
-                                contact.rotation[b], shape.bounds, contact.law.smoothing,
+        points = contact_points(endpoints, contact.radius, motion.position[b],
+                                motion.rotation[b], shape.bounds, contact.law.smoothing,
                                 contact.points_per_segment, contact.segments)
-        weights = shape_functions(points.parameter)
-        ends = contact.segments[points.segment]
-        velocity = weights[:, 0, None] * v[ends[:, 0]] + weights[:, 1, None] * v[ends[:, 1]]
-        query = _world_query(contact, b, points.local)
-        forces = contact_force(query, velocity, contact.radius[points.segment], contact.law)
-        normal_speed = np.einsum("pi,pi->p", query.normal, velocity)
-        out.append(BodyPoints(points, forces, velocity - normal_speed[:, None] * query.normal))
+        if not len(points.segment):  # far from the body: the same empty result every time
+            if "_no_points" not in contact.__dict__:
+                object.__setattr__(contact, "_no_points", _evaluate(contact, b, points, v))
+            out.append(contact.__dict__["_no_points"])
+            continue
+        out.append(_evaluate(contact, b, points, v))
     return out
+
+
+def _evaluate(contact: BodyContact, b: int, points: ContactPoints, v: FloatArray) -> BodyPoints:
+    """Point forces on the contact points ``points`` of body ``b``."""
+    motion = contact.motion
+    weights = shape_functions(points.parameter)
+    ends = contact.segments[points.segment]
+    velocity = weights[:, 0, None] * v[ends[:, 0]] + weights[:, 1, None] * v[ends[:, 1]]
+    if contact.free[b]:
+        velocity = velocity - body_point_velocity(points.position, motion.position[b],
+                                                  motion.velocity[b], motion.omega[b])
+    query = _world_query(contact, b, points.local)
+    forces = contact_force(query, velocity, contact.radius[points.segment], contact.law)
+    normal_speed = np.einsum("pi,pi->p", query.normal, velocity)
+    return BodyPoints(points, forces, velocity - normal_speed[:, None] * query.normal)
 
 
 def nodal_force(contact: BodyContact, x: FloatArray, v: FloatArray) -> FloatArray:
@@ -102,6 +120,8 @@ class ContactState(NamedTuple):
     """Points with a positive normal force."""
     body_force: FloatArray
     """(B, 3) force of the threads on each body [N]."""
+    body_moment: FloatArray
+    """(B, 3) its moment about the body's centre of mass [N m]."""
     friction_power: float
     """Rate of work dissipated by friction [W], >= 0."""
 
@@ -110,14 +130,16 @@ def contact_state(contact: BodyContact, x: FloatArray, v: FloatArray) -> Contact
     """Contact totals at positions ``x`` and velocities ``v`` (N, 3)."""
     total, count, power = 0.0, 0, 0.0
     body_force = np.zeros((contact.n_bodies, 3))
+    body_moment = np.zeros((contact.n_bodies, 3))
     for b, bp in enumerate(body_points(contact, x, v)):
         f = bp.forces.force
         total += float(np.linalg.norm(f, axis=1).sum())
         count += int((bp.forces.normal_force > 0.0).sum())
-        body_force[b] = -f.sum(axis=0)
+        body_force[b], body_moment[b] = body_reaction(f, bp.points.position,
+                                                      contact.motion.position[b])
         # n is normal to the slip velocity, so f . v_T = f_T . v_T
         power -= float(np.einsum("pi,pi->", f, bp.slip_velocity))
-    return ContactState(total, count, body_force, power)
+    return ContactState(total, count, body_force, body_moment, power)
 
 
 def step_travel(contact: BodyContact, x_old: FloatArray, x_new: FloatArray) -> float:
@@ -134,7 +156,7 @@ def step_travel(contact: BodyContact, x_old: FloatArray, x_new: FloatArray) -> f
     reach = contact.radius + contact.law.smoothing
     worst = 0.0
     for k, shape in enumerate(contact.shapes):
-        R, p = contact.rotation[k], contact.position[k]
+        R, p = contact.motion.rotation[k], contact.motion.position[k]
         corners = np.stack([x_old[a], x_old[b], x_new[a], x_new[b]], axis=1)
         local = np.einsum("sci,ij->scj", corners - p, R)
         lower, upper = local.min(axis=1) - reach[:, None], local.max(axis=1) + reach[:, None]

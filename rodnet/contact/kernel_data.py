@@ -2,7 +2,8 @@
 
 The compiled loop (:mod:`rodnet.kernels.contact_compiled`) takes plain arrays: one row per body
 for the primitives and every mesh's bounding-volume hierarchy and pseudonormals concatenated, with
-each mesh body pointing at the root of its own tree. Built once per model.
+each mesh body pointing at the root of its own tree. Built once per model; the bodies' poses and
+velocities are not among them (they change during a run: :attr:`BodyContact.motion`).
 """
 
 from __future__ import annotations
@@ -76,9 +77,8 @@ def kernel_arrays(contact: BodyContact) -> tuple:
     bounds = np.array([s.bounds for s in contact.shapes], dtype=np.float64)
     bound_radius = np.linalg.norm(np.abs(bounds).max(axis=1), axis=1)
     law = contact.law
-    return (np.array(codes, np.int64), np.ascontiguousarray(contact.position),
-            np.ascontiguousarray(contact.rotation), np.array(sizes, np.float64), bounds,
-            bound_radius, np.ascontiguousarray(contact.travel_limit, dtype=np.float64),
-            mesh_root, *mesh,
+    return (np.array(codes, np.int64), np.array(sizes, np.float64), bounds, bound_radius,
+            np.ascontiguousarray(contact.travel_limit, dtype=np.float64),
+            np.ascontiguousarray(contact.compliance(), dtype=np.float64), mesh_root, *mesh,
             float(law.stiffness), float(law.damping), float(law.friction), float(law.smoothing),
             float(law.slip_velocity), int(contact.points_per_segment))

@@ -1,4 +1,4 @@
-"""The lumped model (and cable threads) with fixed rigid bodies: contact as one more force term.
+"""The lumped model (and cable threads) with rigid bodies: contact as one more force term.
 
 :class:`LumpedContactModel` is a :class:`~rodnet.reference.lumped.LumpedModel` whose generalized
 force and tangents include the contact forces of :mod:`rodnet.contact.forces` (so backward Euler,
@@ -22,13 +22,14 @@ from rodnet.config import Scene
 from rodnet.contact.bodies import BodyContact, build_body_contact
 from rodnet.contact.forces import contact_state, nodal_force, nodal_tangents, step_travel
 from rodnet.contact.laws import normal_energy
+from rodnet.contact.rigid_body import kinetic_energy
 from rodnet.integrate.frames import StepStats
 from rodnet.reference.lumped import FloatArray, LumpedModel
 
 
 @dataclass(frozen=True)
 class LumpedContactModel(LumpedModel):
-    """A lumped model with fixed bodies (see the module docstring).
+    """A lumped model with rigid bodies (see the module docstring).
 
     Attributes
     ----------
@@ -38,9 +39,16 @@ class LumpedContactModel(LumpedModel):
     contact: BodyContact
 
     def energy(self, x: FloatArray, v: FloatArray, t: float) -> dict[str, float]:
-        """Kinetic, elastic and external-load energy [J] as the lumped model, plus ``contact``:
-        the energy stored in the penalty springs (N4)."""
+        """Kinetic, elastic and external-load energy [J] as the lumped model, with the free
+        bodies' kinetic energy (at ``contact.motion``) in ``kinetic`` and their gravity
+        potential in ``potential``, plus ``contact``: the energy stored in the penalty springs
+        (N4)."""
         out = super().energy(x, v, t)
+        c = self.contact
+        if c.free.any():
+            out["kinetic"] += kinetic_energy(c.mass, c.inertia, c.motion, c.free)
+            out["potential"] -= float(np.sum(c.mass[c.free] * (c.motion.position[c.free]
+                                                                @ c.gravity)))
         out["contact"] = sum(_penalty_energy(self.contact, b, np.asarray(x))
                              for b in range(self.contact.n_bodies))
         return out
@@ -88,8 +96,8 @@ def _penalty_energy(contact: BodyContact, b: int, x: FloatArray) -> float:
     """Energy stored in the penalty springs of body ``b`` (N4) [J]."""
     from rodnet.contact.broadphase import contact_points
 
-    points = contact_points(x[contact.segments], contact.radius, contact.position[b],
-                            contact.rotation[b], contact.shapes[b].bounds, contact.law.smoothing,
+    points = contact_points(x[contact.segments], contact.radius, contact.motion.position[b],
+                            contact.motion.rotation[b], contact.shapes[b].bounds, contact.law.smoothing,
                             contact.points_per_segment, contact.segments)
     if not len(points.segment):
         return 0.0
@@ -98,7 +106,7 @@ def _penalty_energy(contact: BodyContact, b: int, x: FloatArray) -> float:
 
 
 def with_bodies(model: LumpedModel, scene: Scene) -> LumpedContactModel:
-    """``model`` with the fixed bodies and contact law of ``scene``."""
+    """``model`` with the bodies and contact law of ``scene``."""
     contact = build_body_contact(scene, model.structure)
     assert contact is not None
     fields = {f.name: getattr(model, f.name) for f in dataclasses.fields(model)}

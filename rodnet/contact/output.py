@@ -1,9 +1,10 @@
 """What a run with rigid bodies writes: contact time series, body poses and body surfaces.
 
 :class:`ContactLog` sits between an integrator and the run's frame recorder: for every saved frame
-it records the contact totals (:func:`rodnet.contact.forces.contact_state`) and the friction work
-done so far (``stats.extra["friction_work"]``, summed by the integrators step by step), and
-hands the frame on. :func:`body_surfaces` gives each body's surface as triangles in world
+it records the contact totals (:func:`rodnet.contact.forces.contact_state`), the friction work
+done so far (``stats.extra["friction_work"]``, summed by the integrators step by step) and the
+bodies' state (``contact.motion``), moves the body surfaces of the recorder's VTK series to the
+frame's poses, and hands the frame on. :func:`body_surfaces` gives each body's surface as triangles in world
 coordinates for the VTK series. Result names are in ``docs/contact.md``.
 """
 
@@ -47,33 +48,64 @@ class ContactLog:
     total_force: list[float] = field(default_factory=list)
     count: list[int] = field(default_factory=list)
     body_force: list[FloatArray] = field(default_factory=list)
+    body_moment: list[FloatArray] = field(default_factory=list)
     friction_work: list[float] = field(default_factory=list)
+    poses: dict[str, list[FloatArray]] = field(default_factory=lambda: {
+        "position": [], "quaternion": [], "velocity": [], "omega": []})
+    _started: bool = False
 
     def __call__(self, t: float, q: Any, v: FloatArray) -> None:
+        contact = self.contact
+        if not self._started:  # the start frame comes before the integrator touches the bodies
+            contact.motion.set(contact.start_motion())
+            self._started = True
+        self._move_vtk_bodies()
         kept = len(self.recorder.time)
         try:
             self.recorder(t, q, v)
         finally:
             if len(self.recorder.time) > kept:
-                state = contact_state(self.contact, np.asarray(q).reshape(-1, 3),
+                state = contact_state(contact, np.asarray(q).reshape(-1, 3),
                                       np.asarray(v).reshape(-1, 3))
                 self.total_force.append(state.total_force)
                 self.count.append(state.count)
                 self.body_force.append(state.body_force)
+                self.body_moment.append(state.body_moment)
                 self.friction_work.append(self.stats.extra.get("friction_work", 0.0))
+                for key, values in self.poses.items():
+                    values.append(np.array(getattr(contact.motion, key)))
+
+    def _move_vtk_bodies(self) -> None:
+        """Put the free bodies' surfaces of the recorder's VTK series at their current pose."""
+        vtk = getattr(self.recorder, "vtk", None)
+        if vtk is None or not self.contact.free.any():
+            return
+        motion = self.contact.motion
+        for b in np.flatnonzero(self.contact.free):
+            local = surface_triangles(self.contact.shapes[b])[0]
+            vtk.bodies[b].points = motion.position[b] + local @ motion.rotation[b].T
 
     def arrays(self) -> dict[str, NDArray[Any]]:
         """``contact_force`` [N], ``contact_count``, ``friction_work`` [J] (F,);
-        ``body_force`` [N] and ``body_positions`` [m] (F, B, 3); ``body_rotations`` (F, B, 4)
-        quaternions (w, x, y, z); ``body_names`` (B,)."""
+        ``body_force`` [N], ``body_moment`` [N m] (about the centre of mass),
+        ``body_positions`` [m], ``body_velocities`` [m/s] and ``body_angular_velocities``
+        (world axes) [rad/s] (F, B, 3); ``body_rotations`` (F, B, 4) quaternions (w, x, y, z);
+        ``body_names`` (B,)."""
         frames, bodies = len(self.total_force), self.contact.n_bodies
+
+        def stacked(values: list[FloatArray], width: int) -> FloatArray:
+            return np.array(values, dtype=np.float64).reshape(frames, bodies, width)
+
         return {
             "contact_force": np.array(self.total_force, dtype=np.float64),
             "contact_count": np.array(self.count, dtype=np.int64),
             "friction_work": np.array(self.friction_work, dtype=np.float64),
-            "body_force": np.array(self.body_force, dtype=np.float64).reshape(frames, bodies, 3),
-            "body_positions": np.repeat(self.contact.position[None], frames, axis=0),
-            "body_rotations": np.repeat(self.contact.quaternion[None], frames, axis=0),
+            "body_force": stacked(self.body_force, 3),
+            "body_moment": stacked(self.body_moment, 3),
+            "body_positions": stacked(self.poses["position"], 3),
+            "body_rotations": stacked(self.poses["quaternion"], 4),
+            "body_velocities": stacked(self.poses["velocity"], 3),
+            "body_angular_velocities": stacked(self.poses["omega"], 3),
             "body_names": np.array(self.contact.names, dtype=str),
         }
 
@@ -160,6 +192,6 @@ def body_surfaces(model: Any) -> list[tuple[str, FloatArray, IntArray]]:
     out = []
     for b, shape in enumerate(contact.shapes):
         local, faces = surface_triangles(shape)
-        world = contact.position[b] + local @ contact.rotation[b].T
+        world = contact.position[b] + local @ contact.rotation[b].T  # the start pose
         out.append((contact.names[b], world, faces))
     return out

@@ -1,7 +1,9 @@
-"""Explicit symplectic Euler of the lumped model with fixed rigid bodies, compiled.
+"""Explicit symplectic Euler of the lumped model with rigid bodies, compiled.
 
 The step loop is :func:`rodnet.kernels.contact_compiled.advance_contact`: segment forces, loads,
-contact and the update (S9) without returning to Python. Between two frames the step is the
+contact, the update (S9) of the nodes and (R1)-(R4) of the free bodies without returning to
+Python. The bodies' state is ``model.contact.motion``: reset to the start state here, advanced in
+place, and read by the frame sink at every frame. Between two frames the step is the
 scene's ``dt`` shrunk so that a whole number of steps fits, as without bodies. When a thread point
 near a body would move more than the body's travel limit (E3) in one step (checked with the velocities
 at the start of every step), the loop stops before that step and the rest of the frame interval is
@@ -43,9 +45,18 @@ def march_with_contact(model: LumpedContactModel, x: NDArray[np.float64], v: NDA
     contact = model.contact
     k = model.kernel_arguments()
     lumped = (*k[:6], model.inv_mass, *k[6:])
-    bodies = contact.kernel_arguments(model.inv_mass)[2:]  # from the radius on
+    motion = contact.motion
+    motion.set(contact.start_motion())
+    bodies = (*contact.kernel_arguments(model.inv_mass)[2:],  # from the radius on
+              *contact.kernel_motion(motion), motion.quaternion, motion.momentum,
+              contact.inv_mass, np.ascontiguousarray(np.where(
+                  contact.free[:, None, None], contact.inertia, 0.0)),
+              contact.inv_inertia, np.asarray(contact.gravity))
     taken = np.zeros(len(x), dtype=np.bool_)
     body_force = np.zeros((contact.n_bodies, 3))
+    body_moment = np.zeros((contact.n_bodies, 3))
+    clearance = np.full(contact.n_bodies, -np.inf)
+    travelled = np.zeros(contact.n_bodies)
     scratch = np.empty_like(x)
     stats.extra.setdefault("friction_work", 0.0)
     for t_start, t_end in zip(times[:-1], times[1:]):
@@ -53,7 +64,8 @@ def march_with_contact(model: LumpedContactModel, x: NDArray[np.float64], v: NDA
         while True:
             n_steps, h = whole_steps(t, t_end, step)
             peak, done, work, status, allowed = advance_contact(
-                x, v, scratch, t, h, n_steps, *lumped, *bodies, taken, body_force)
+                x, v, scratch, t, h, n_steps, *lumped, *bodies, taken, body_force, body_moment,
+                clearance, travelled)
             if done:
                 stats.record_step(h, done)
             stats.function_evaluations += done + (status == 2)

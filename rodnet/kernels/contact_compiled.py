@@ -1,11 +1,11 @@
-"""Compiled contact forces of thread points against fixed rigid bodies, and the explicit step loop
-of the lumped model with contact.
+"""Compiled contact forces of thread points against rigid bodies, and the explicit step loop of
+the lumped model with contact and free bodies.
 
 One call of :func:`accumulate_contact` does, for every body, the broad phase (B1)-(B2) over all
 segments, the signed distance and normal of each candidate point ((G4)-(G10): box, cylinder,
 sphere, triangle mesh through its bounding-volume hierarchy), the penalty normal force (N1)-(N3),
-velocity-regularised friction (F1)-(F2) and the distribution to the segment's nodes (B5) with the
-body's reaction (B6). Equations: ``elements/contact/FORMULATION.md``. The NumPy building blocks of
+velocity-regularised friction (F1)-(F2) on the velocity relative to the body, and the distribution
+to the segment's nodes (B5) with the body's reaction force and moment (B6). Equations: ``elements/contact/FORMULATION.md``. The NumPy building blocks of
 :mod:`rodnet.contact` are the oracle: ``tests/contact/test_contact_model.py`` checks this kernel
 against them point by point.
 
@@ -15,7 +15,10 @@ at ``m_eff / (dt share)`` (``m_eff`` the point's effective mass ``1 / (N_a^2/m_a
 step resolves without overshoot; it only acts below a slip speed of order
 ``mu N dt share / m_eff`` and leaves sliding friction ``mu N`` unchanged. And every segment whose
 nodes could reach a body within the step reports the step that keeps its travel within the body's
-travel limit, so the loop can shorten the step before a point jumps over a thin body.
+travel limit, so the loop can shorten the step before a point jumps over a thin body. The loop
+(:func:`advance_contact`) visits a body only when a thread can have come within its reach since
+the last visit (E4), and moves the free bodies with (R1)-(R4)
+(:func:`rodnet.contact.rigid_body.advance_bodies`).
 """
 
 from __future__ import annotations
@@ -26,7 +29,8 @@ import numba
 import numpy as np
 
 from rodnet.contact.mesh_distance import STACK_DEPTH, nearest_triangle
-from rodnet.kernels.lumped_explicit import accumulate_forces, update_state
+from rodnet.contact.rigid_body import advance_bodies
+from rodnet.kernels.lumped_explicit import accumulate_forces
 
 
 @numba.njit(cache=True)
@@ -151,11 +155,15 @@ def _distance(code, size, root, p, n, tri, lower, upper, left, right, start, cou
 
 
 @numba.njit(cache=True)
-def _point_force(delta, nl, R, xi, a, b, v, dt, inv_mass, node_share, stiffness, damping,
-                 friction, smoothing, slip_velocity, force, body_force, nw, vp):  # pragma: no cover
+def _point_force(delta, nl, R, xi, a, b, v, dt, inv_mass, node_share, body_compliance, arm,
+                 body_velocity, body_omega, stiffness, damping, friction, smoothing, slip_velocity,
+                 force, body_force, body_moment, nw, vp):  # pragma: no cover - compiled
     """Force on the point at ``xi`` of segment a-b with penetration ``delta`` and body-frame
     normal ``nl``, (N1)-(N3), (F1)-(F2) with the explicit cap (E2); added to the nodes' ``force``
-    (B5) and, opposite, to the body's ``body_force`` (3,) (B6).
+    (B5) and, opposite, to the body's ``body_force`` (3,) with its moment about the body's
+    centre of mass, ``arm`` (3,) being the point's offset from it, to ``body_moment`` (B6).
+    The relative velocity is the point's minus that of the body's material point there,
+    ``body_velocity + body_omega x arm``.
 
     Returns the magnitude of the point force [N] and the friction power [W], or (-1, 0) when
     the point does not press on the body."""
@@ -169,7 +177,10 @@ def _point_force(delta, nl, R, xi, a, b, v, dt, inv_mass, node_share, stiffness,
     vn = 0.0
     for k in range(3):
         nw[k] = R[k, 0] * nl[0] + R[k, 1] * nl[1] + R[k, 2] * nl[2]
-        vp[k] = (1.0 - xi) * v[a, k] + xi * v[b, k]
+        k1, k2 = (k + 1) % 3, (k + 2) % 3
+        vp[k] = ((1.0 - xi) * v[a, k] + xi * v[b, k] - body_velocity[k]
+                 - (body_omega[k1] * arm[k2] - body_omega[k2] * arm[k1]))
+    for k in range(3):
         vn += nw[k] * vp[k]
     normal = stiffness * rho - damping * slope * vn
     if normal <= 0.0:
@@ -181,7 +192,7 @@ def _point_force(delta, nl, R, xi, a, b, v, dt, inv_mass, node_share, stiffness,
     viscous = friction * normal / math.sqrt(slip2 + slip_velocity * slip_velocity)
     if dt > 0.0:
         wa, wb = 1.0 - xi, xi
-        compliance = wa * wa * inv_mass[a] + wb * wb * inv_mass[b]
+        compliance = wa * wa * inv_mass[a] + wb * wb * inv_mass[b] + body_compliance
         share = max(node_share[a] if wa > 0.0 else 0, node_share[b] if wb > 0.0 else 0)
         if compliance > 0.0:
             viscous = min(viscous, 1.0 / (compliance * dt * share))
@@ -192,22 +203,39 @@ def _point_force(delta, nl, R, xi, a, b, v, dt, inv_mass, node_share, stiffness,
         force[b, k] += xi * fk
         body_force[k] -= fk
         f2 += fk * fk
+        vp[k] = fk  # vp now holds the point force
+    body_moment[0] -= arm[1] * vp[2] - arm[2] * vp[1]
+    body_moment[1] -= arm[2] * vp[0] - arm[0] * vp[2]
+    body_moment[2] -= arm[0] * vp[1] - arm[1] * vp[0]
     return math.sqrt(f2), viscous * slip2
 
 
 @numba.njit(cache=True)
+def body_speed(body_velocity, body_omega, bound_radius, b):  # pragma: no cover - compiled
+    """Largest speed of a material point of body ``b`` within its bounding sphere [m/s]."""
+    return (math.sqrt(body_velocity[b, 0] ** 2 + body_velocity[b, 1] ** 2 + body_velocity[b, 2] ** 2)
+            + bound_radius[b] * math.sqrt(body_omega[b, 0] ** 2 + body_omega[b, 1] ** 2
+                                          + body_omega[b, 2] ** 2))
+
+
+@numba.njit(cache=True)
 def accumulate_contact(x, v, force, dt, inv_mass, segments, radius, node_share,
-                       kind, body_position, body_rotation, body_size, body_bounds, bound_radius,
-                       travel_limit, mesh_root, tri, lower, upper, left, right, start, count,
+                       kind, body_size, body_bounds, bound_radius, travel_limit, body_compliance,
+                       mesh_root, tri, lower, upper, left, right, start, count,
                        order, face_normal, edge_normal, corner_normal,
                        stiffness, damping, friction, smoothing, slip_velocity, points_per_segment,
-                       taken, body_force):  # pragma: no cover - compiled
+                       body_position, body_rotation, body_velocity, body_omega,
+                       active, taken, body_force, body_moment, clearance):  # pragma: no cover
     """Add the contact forces on the nodes to ``force`` (N, 3) [N].
 
     ``dt`` > 0 caps friction's viscous slope for a symplectic Euler step of that size and checks
-    the travel of segments near bodies; ``dt`` <= 0 evaluates the plain law. ``taken`` (N,) bool
-    is scratch space, all False on entry and on return; ``body_force`` (B, 3) receives the force
-    of the threads on each body [N].
+    the travel of segments near bodies; ``dt`` <= 0 evaluates the plain law. Only bodies with
+    ``active`` (B,) True are visited. ``taken`` (N,) bool is scratch space, all False on entry
+    and on return. For every visited body, ``body_force`` and ``body_moment`` (B, 3) receive the
+    force of the threads on it [N] and its moment about the centre of mass [N m], and
+    ``clearance`` (B,) the smallest gap [m] between the bounding sphere of a segment, grown by
+    its radius and the law's smoothing, and the body's bounding sphere (negative when some
+    segment is that close).
 
     Returns
     -------
@@ -225,30 +253,35 @@ def accumulate_contact(x, v, force, dt, inv_mass, segments, radius, node_share,
     power, total, contacts, allowed = 0.0, 0.0, 0, np.inf
     stack = np.empty(STACK_DEPTH, np.int64)
     w, nl, nw, pl = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
-    la, lb, vp = np.empty(3), np.empty(3), np.empty(3)
+    la, lb, vp, arm = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
     marked = np.empty(x.shape[0], np.int64)
     for bi in range(kind.shape[0]):
-        R, bounds = body_rotation[bi], body_bounds[bi]
-        body_force[bi, 0] = body_force[bi, 1] = body_force[bi, 2] = 0.0
+        if not active[bi]:
+            continue
+        R, bounds, p = body_rotation[bi], body_bounds[bi], body_position[bi]
+        for k in range(3):
+            body_force[bi, k] = body_moment[bi, k] = 0.0
+        moving = body_speed(body_velocity, body_omega, bound_radius, bi)
+        gap_min = np.inf
         n_marked = 0
         for s in range(n_seg):
             a, b = segments[s, 0], segments[s, 1]
-            speed = math.sqrt(max(v[a, 0] ** 2 + v[a, 1] ** 2 + v[a, 2] ** 2,
-                                  v[b, 0] ** 2 + v[b, 1] ** 2 + v[b, 2] ** 2))
+            speed = moving + math.sqrt(max(v[a, 0] ** 2 + v[a, 1] ** 2 + v[a, 2] ** 2,
+                                           v[b, 0] ** 2 + v[b, 1] ** 2 + v[b, 2] ** 2))
             reach_points = radius[s] + smoothing
             reach = reach_points + (speed * dt if dt > 0.0 else 0.0)
             far = 0.0
             half = 0.0
             for k in range(3):
-                far += (0.5 * (x[a, k] + x[b, k]) - body_position[bi, k]) ** 2
+                far += (0.5 * (x[a, k] + x[b, k]) - p[k]) ** 2
                 half += (x[b, k] - x[a, k]) ** 2
-            if math.sqrt(far) > bound_radius[bi] + 0.5 * math.sqrt(half) + reach:
+            gap = math.sqrt(far) - bound_radius[bi] - 0.5 * math.sqrt(half) - reach_points
+            gap_min = min(gap_min, gap)
+            if gap > reach - reach_points:
                 continue
             for k in range(3):
-                la[k] = (R[0, k] * (x[a, 0] - body_position[bi, 0]) + R[1, k] * (x[a, 1] - body_position[bi, 1])
-                         + R[2, k] * (x[a, 2] - body_position[bi, 2]))
-                lb[k] = (R[0, k] * (x[b, 0] - body_position[bi, 0]) + R[1, k] * (x[b, 1] - body_position[bi, 1])
-                         + R[2, k] * (x[b, 2] - body_position[bi, 2]))
+                la[k] = R[0, k] * (x[a, 0] - p[0]) + R[1, k] * (x[a, 1] - p[1]) + R[2, k] * (x[a, 2] - p[2])
+                lb[k] = R[0, k] * (x[b, 0] - p[0]) + R[1, k] * (x[b, 1] - p[1]) + R[2, k] * (x[b, 2] - p[2])
             if not _segment_near(la, lb, reach, bounds):
                 continue
             if dt > 0.0 and speed * dt > travel_limit[bi]:  # (E3)
@@ -274,29 +307,58 @@ def accumulate_contact(x, v, force, dt, inv_mass, segments, radius, node_share,
                 d = _distance(kind[bi], body_size[bi], mesh_root[bi], pl, nl, tri, lower, upper,
                               left, right, start, count, order, face_normal, edge_normal,
                               corner_normal, stack, w)
+                for k in range(3):
+                    arm[k] = (1.0 - xi) * x[a, k] + xi * x[b, k] - p[k]
                 magnitude, dissipation = _point_force(
-                    radius[s] - d, nl, R, xi, a, b, v, dt, inv_mass, node_share, stiffness,
-                    damping, friction, smoothing, slip_velocity, force, body_force[bi], nw, vp)
+                    radius[s] - d, nl, R, xi, a, b, v, dt, inv_mass, node_share,
+                    body_compliance[bi], arm, body_velocity[bi], body_omega[bi], stiffness,
+                    damping, friction, smoothing, slip_velocity, force, body_force[bi],
+                    body_moment[bi], nw, vp)
                 if magnitude >= 0.0:
                     total += magnitude
                     contacts += 1
                     power += dissipation
+        clearance[bi] = gap_min
         for i in range(n_marked):
             taken[marked[i]] = False
     return power, total, contacts, allowed
 
 
 @numba.njit(cache=True)
+def _update_nodes(x, v, force, inv_mass, dt):  # pragma: no cover - compiled
+    """The symplectic Euler update (S9) of ``x``, ``v`` (N, 3) in place; returns whether every
+    position is finite and the largest node speed after the update [m/s]."""
+    finite, top = True, 0.0
+    for i in range(x.shape[0]):
+        for k in range(3):
+            v[i, k] += dt * force[i, k] * inv_mass[i]
+            x[i, k] += dt * v[i, k]
+        top = max(top, v[i, 0] ** 2 + v[i, 1] ** 2 + v[i, 2] ** 2)
+        if not (math.isfinite(x[i, 0]) and math.isfinite(x[i, 1]) and math.isfinite(x[i, 2])):
+            finite = False
+    return finite, math.sqrt(top)
+
+
+@numba.njit(cache=True)
 def advance_contact(x, v, force, t0, dt, n_steps,
                     segments, rest_length, EA, etaA, kink_strain, tension_only,
                     inv_mass, gravity_force, load_nodes, load_force, load_ramp,
-                    radius, node_share, kind, body_position, body_rotation, body_size,
-                    body_bounds, bound_radius, travel_limit, mesh_root, tri, lower, upper, left,
-                    right, start, count, order, face_normal, edge_normal, corner_normal,
+                    radius, node_share, kind, body_size, body_bounds, bound_radius, travel_limit,
+                    body_compliance, mesh_root, tri, lower, upper, left, right, start, count,
+                    order, face_normal, edge_normal, corner_normal,
                     stiffness, damping, friction, smoothing, slip_velocity, points_per_segment,
-                    taken, body_force):  # pragma: no cover - compiled
-    """Advance ``x``, ``v`` (N, 3) in place by up to ``n_steps`` symplectic Euler steps (S9)
-    with segment forces, external loads and contact.
+                    body_position, body_rotation, body_velocity, body_omega,
+                    body_quaternion, body_momentum, body_inv_mass, body_inertia,
+                    body_inv_inertia, body_gravity,
+                    taken, body_force, body_moment, clearance, travelled):  # pragma: no cover
+    """Advance ``x``, ``v`` (N, 3) and the free bodies in place by up to ``n_steps`` steps:
+    symplectic Euler (S9) of the nodes with segment forces, external loads and contact, and
+    (R1)-(R4) of the free bodies (``body_inv_mass`` > 0).
+
+    A body's contact is evaluated only in steps where some segment could have come within its
+    reach: ``clearance`` (B,) is the gap found at the last evaluation and ``travelled`` (B,) an
+    upper bound of how much that gap has shrunk since (node and body speeds times the steps,
+    (E4)); both carry over from call to call (start with ``-inf`` and 0).
 
     Returns
     -------
@@ -313,20 +375,50 @@ def advance_contact(x, v, force, t0, dt, n_steps,
         For status 2, the step [s] that respects the travel limit at that moment.
     """
     max_tension, work = 0.0, 0.0
+    n_bodies = kind.shape[0]
+    active = np.zeros(n_bodies, np.bool_)
+    node_speed = 0.0
+    for i in range(x.shape[0]):
+        node_speed = max(node_speed, v[i, 0] ** 2 + v[i, 1] ** 2 + v[i, 2] ** 2)
+    node_speed = math.sqrt(node_speed)
     for step in range(n_steps):
         peak = accumulate_forces(x, v, t0 + step * dt, force, segments, rest_length, EA, etaA,
                                  kink_strain, tension_only, gravity_force, load_nodes,
                                  load_force, load_ramp)
-        power, _, _, allowed = accumulate_contact(
-            x, v, force, dt, inv_mass, segments, radius, node_share, kind, body_position,
-            body_rotation, body_size, body_bounds, bound_radius, travel_limit, mesh_root, tri,
-            lower, upper, left, right, start, count, order, face_normal, edge_normal,
-            corner_normal, stiffness, damping, friction, smoothing, slip_velocity,
-            points_per_segment, taken, body_force)
+        any_active = False
+        for b in range(n_bodies):  # (E4)
+            reach = 2.0 * dt * (2.0 * node_speed + body_speed(body_velocity, body_omega,
+                                                              bound_radius, b))
+            active[b] = travelled[b] + reach >= clearance[b]
+            if active[b]:
+                any_active = True
+                travelled[b] = 0.0
+            else:
+                for k in range(3):
+                    body_force[b, k] = body_moment[b, k] = 0.0
+        power, allowed = 0.0, np.inf
+        if any_active:
+            power, _, _, allowed = accumulate_contact(
+                x, v, force, dt, inv_mass, segments, radius, node_share, kind, body_size,
+                body_bounds, bound_radius, travel_limit, body_compliance, mesh_root, tri,
+                lower, upper, left, right, start, count, order, face_normal, edge_normal,
+                corner_normal, stiffness, damping, friction, smoothing, slip_velocity,
+                points_per_segment, body_position, body_rotation, body_velocity, body_omega,
+                active, taken, body_force, body_moment, clearance)
         if allowed < dt:
+            for b in range(n_bodies):
+                if active[b]:
+                    clearance[b] = -np.inf  # evaluate again at the shorter step
             return max_tension, step, work, 2, allowed
         max_tension = max(max_tension, peak)
         work += dt * power
-        if not update_state(x, v, force, inv_mass, dt):
+        finite, node_speed = _update_nodes(x, v, force, inv_mass, dt)
+        advance_bodies(dt, body_force, body_moment, body_inv_mass, body_inertia,
+                       body_inv_inertia, body_gravity, body_position, body_velocity,
+                       body_quaternion, body_rotation, body_momentum, body_omega)
+        for b in range(n_bodies):
+            travelled[b] += dt * (2.0 * node_speed + body_speed(body_velocity, body_omega,
+                                                                bound_radius, b))
+        if not finite:
             return max_tension, step + 1, work, 1, np.inf
     return max_tension, n_steps, work, 0, np.inf

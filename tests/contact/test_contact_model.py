@@ -103,14 +103,18 @@ def model(tmp_path_factory):
     return prepare(scene_from_toml(four_bodies_scene(tmp))).model
 
 
-def compiled(model, x, v, dt=0.0):
+def compiled(model, x, v, dt=0.0, with_moment=False):
     contact = model.contact
     force = np.zeros_like(x)
-    body_force = np.zeros((contact.n_bodies, 3))
+    body_force, body_moment = np.zeros((contact.n_bodies, 3)), np.zeros((contact.n_bodies, 3))
     taken = np.zeros(len(x), dtype=np.bool_)
-    out = accumulate_contact(x, v, force, dt, *contact.kernel_arguments(model.inv_mass), taken,
-                             body_force)
+    active, clearance = np.ones(contact.n_bodies, np.bool_), np.zeros(contact.n_bodies)
+    out = accumulate_contact(x, v, force, dt, *contact.kernel_arguments(model.inv_mass),
+                             *contact.kernel_motion(), active, taken, body_force, body_moment,
+                             clearance)
     assert not taken.any()
+    if with_moment:
+        return force, body_force, body_moment, out
     return force, body_force, out
 
 

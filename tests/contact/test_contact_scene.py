@@ -38,7 +38,8 @@ BAD = [  # (override, key named in the message, a word of the allowed range)
     ("bodies[0].mass=0", "bodies[0].mass", "> 0"),
     ("bodies[0].mass=-5", "bodies[0].mass", "> 0"),
     ("bodies[0].density=-1", "bodies[0].density", "> 0"),
-    ("bodies[0].fixed=false", "bodies[0].fixed", "free bodies are not supported yet"),
+    ("bodies[0].fixed=false", "bodies[0].mass", "a free body (fixed = false) needs its mass"),
+    ("bodies[0].inertia=[1.0, 1.0, 1.0]", "bodies[0].inertia", "needs the body's mass"),
     ("bodies[0].velocity=[0, 1, 0]", "bodies[0].velocity", "fixed body"),
     ("bodies[0].angular_velocity_deg=[0, 1, 0]", "bodies[0].angular_velocity_deg", "fixed body"),
     ('bodies[0].file="target.stl"', "bodies[0].file", 'only read for shape = "mesh"'),
@@ -166,15 +167,59 @@ def test_contact_needs_the_lumped_model_or_cables_and_no_rk45() -> None:
     assert cables.model.contact.names == ("target",)
 
 
-def test_cli_refuses_a_free_body_and_writes_nothing(tmp_path: Path,
-                                                    capsys: pytest.CaptureFixture[str]) -> None:
+BAD_INERTIA = [  # (inertia, a word of the message)
+    ("[1.0, -2.0, 1.0]", "must be > 0"),
+    ("[0.0, 1.0, 1.0]", "must be > 0"),
+    ("[1.0, 1.0]", "[Ixx, Iyy, Izz]"),
+    ("[1.0, 1.0, 3.0]", "exceeds the sum of the other two"),
+    ("[1.0, 1.0, 1.0, 2.0, 0.0, 0.0]", "positive definite"),
+]
+
+
+@pytest.mark.parametrize("inertia,word", BAD_INERTIA)
+def test_bad_inertia_is_named_with_what_is_allowed(inertia: str, word: str) -> None:
+    with pytest.raises(SceneError) as info:
+        scene_from_toml(with_body(), ["bodies[0].fixed=false", "bodies[0].mass=10.0",
+                                      f"bodies[0].inertia={inertia}"])
+    assert info.value.key == "bodies[0].inertia"
+    assert word in str(info.value)
+
+
+def test_free_bodies_need_the_explicit_integrator_and_a_dynamic_run() -> None:
+    free = ["bodies[0].fixed=false", "bodies[0].mass=10.0"]
+    for integrator in ("generalized-alpha", "backward-euler", "midpoint"):
+        with pytest.raises(SceneError, match="free bodies move with the 'explicit' integrator") \
+                as info:
+            prepare(scene_from_toml(with_body(), [*free, f'simulation.integrator="{integrator}"']))
+        assert info.value.key == "simulation.integrator" and info.value.value == integrator
+        assert "bodies[0] ('target')" in str(info.value)
+    with pytest.raises(SceneError, match="a static run needs every body fixed") as info:
+        prepare(scene_from_toml(with_body(), [*free, 'simulation.type="static"']))
+    assert info.value.key == "simulation.type"
+    # explicit: accepted, with the inertia of the homogeneous box, 10 kg * (1 + 1) / 12
+    model = prepare(scene_from_toml(with_body(), free)).model
+    np.testing.assert_allclose(model.contact.inertia[0], 10.0 / 6.0 * np.eye(3), rtol=1e-12)
+    assert model.contact.free.tolist() == [True]
+
+
+def test_given_inertia_is_used_in_body_axes() -> None:
+    model = prepare(scene_from_toml(with_body(), [
+        "bodies[0].fixed=false", "bodies[0].mass=10.0",
+        "bodies[0].inertia=[2.0, 3.0, 4.0, 0.5, -0.25, 0.125]"])).model
+    np.testing.assert_array_equal(model.contact.inertia[0], [[2.0, 0.5, -0.25], [0.5, 3.0, 0.125],
+                                                             [-0.25, 0.125, 4.0]])
+
+
+def test_cli_refuses_a_free_body_with_an_implicit_integrator_and_writes_nothing(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     scene = tmp_path / "scene.toml"
-    scene.write_text(with_body().replace("fixed = true", "fixed = false"))
+    scene.write_text(with_body("mass = 10.0\n").replace("fixed = true", "fixed = false")
+                     .replace('integrator = "explicit"', 'integrator = "backward-euler"'))
     out = tmp_path / "out"
     assert main(["run", str(scene), "-o", str(out), "--quiet"]) == 2
     assert not out.exists()
     err = capsys.readouterr().err
-    assert "bodies[0].fixed" in err and "free bodies are not supported yet" in err
+    assert "simulation.integrator" in err and "free bodies move with the 'explicit'" in err
 
 
 def test_contact_defaults_and_orientation() -> None:
