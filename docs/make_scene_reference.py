@@ -276,9 +276,10 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
         "", "`true`: the body is held in place and never moves (its pose is constant in the "
         "results). `false` (the default): a free 6-DOF rigid body moved by contact and gravity "
         "(needs `mass` or `density`, and the `explicit` integrator; refused with implicit "
-        "integrators and static runs). Contact with bodies needs the lumped model or cable "
-        "threads and an `explicit` or (fixed bodies only) implicit integrator, not `rk45`; a body "
-        "that touches a thread at the start is refused, naming the first node inside it."),
+        "integrators and static runs, so with Cosserat rods). Contact with bodies works in the "
+        "lumped model, cable threads and Cosserat rods, with an `explicit` or (fixed bodies only) "
+        "implicit integrator, not `rk45`; a body that touches a thread at the start is refused, "
+        "naming the first node inside it."),
     # [contact]
     "contact.stiffness": (
         "N/m", "Penalty stiffness `k` > 0 per contact point: `N = k delta` at a penetration "
@@ -348,8 +349,8 @@ means `model.type = "cosserat"` with `bending` or `torsion` on; "cable threads" 
 `model.type = "cosserat"` with both off, which runs the lumped model's equations.
 
 Rigid bodies (`[[bodies]]`) are free unless `fixed = true`; free bodies move with the `explicit`
-integrator only. Contact with bodies (`[contact]`) is modelled for the lumped model and cable
-threads; see [contact](contact.md).
+integrator only. Contact with bodies (`[contact]`) is modelled for the lumped model, cable
+threads and Cosserat rods (fixed bodies); see [contact](contact.md).
 Keys that only one model or one kind of run uses are read and checked by all; the descriptions
 say where a key has no effect.
 """

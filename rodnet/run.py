@@ -47,6 +47,7 @@ class Prepared:
     dt: float
     mass: NDArray[np.float64]   # (N,) translational node masses [kg]
     structure: Structure
+    near_dt: float | None = None  # explicit with bodies: the step while a body is within reach
 
 
 def prepare(scene: Scene) -> Prepared:
@@ -57,6 +58,10 @@ def prepare(scene: Scene) -> Prepared:
     check_contact_supported(scene)
     if rods_mode:
         model, q0, v0 = build_cosserat(scene, structure)
+        if scene.bodies:
+            from rodnet.contact.cosserat import cosserat_with_bodies
+
+            model = cosserat_with_bodies(model, scene, structure)
         if integrator in LUMPED_ONLY and sim.type == "dynamic":
             raise SceneError("simulation.integrator", integrator, "Cosserat rods need an implicit "
                              f"integrator: one of {list(IMPLICIT)}")
@@ -67,21 +72,27 @@ def prepare(scene: Scene) -> Prepared:
         v0 = structure.velocities.copy()
         v0[model.inv_mass == 0.0] = 0.0
         v0 = v0.ravel() if integrator in IMPLICIT or sim.type == "static" else v0
-    dt = sim.dt
+    dt, near_dt = sim.dt, None
     if sim.type == "dynamic" and integrator == "explicit":
-        limit = model.stable_step()
+        # with bodies: the threads' own limit while every body is out of reach, the limit with
+        # the contact springs (model.stable_step) while one is within reach (E5)
+        near = model.stable_step()
+        far = getattr(model, "far_stable_step", None)
+        limit = near if far is None else far()
         if sim.adaptive:
             dt = sim.explicit_safety * limit
         elif dt > limit:
             raise SceneError("simulation.dt", dt, f"exceeds the explicit stability limit "
                              f"{limit:.3g} s of this scene; use dt <= {limit:.3g} "
                              f"(about half of it for accurate snap loads) or adaptive = true")
+        if far is not None:
+            near_dt = sim.explicit_safety * near if sim.adaptive else min(dt, near)
     if sim.type == "static":
         _check_supported(model, q0, [s.node for s in scene.supports])
         times = np.arange(1, sim.load_steps + 1) / sim.load_steps
     else:
         times = frame_times(sim.duration, scene.output.frame_interval)
-    return Prepared(scene, model, q0, v0, times, dt, mass, structure)
+    return Prepared(scene, model, q0, v0, times, dt, mass, structure, near_dt)
 
 
 def _check_supported(model: Any, q0: Any, supports: list[str]) -> None:
@@ -240,7 +251,8 @@ def _integrate(p: Prepared, recorder: Recorder, bar: Progress, stats: StepStats)
     if p.scene.integrator == "explicit":
         from rodnet.integrate.explicit import integrate_explicit
 
-        return integrate_explicit(p.model, p.q0, p.v0, p.times, p.dt, recorder, bar, stats=stats)
+        return integrate_explicit(p.model, p.q0, p.v0, p.times, p.dt, recorder, bar, stats=stats,
+                                  near_dt=p.near_dt)
     stepper = Stepper(p.model, p.scene.integrator, sim.rho_inf, options)
     return integrate_implicit(stepper, p.q0, p.v0, p.times, p.dt, sim.adaptive, recorder, bar,
                               dt_max=sim.dt_max, error_tolerance=sim.error_tolerance, stats=stats)
@@ -265,6 +277,7 @@ def _summary(p: Prepared, arrays: dict[str, NDArray[Any]], stats: StepStats, sta
         "function_evaluations": stats.function_evaluations,
         "frames": len(arrays["time"]), "simulated_time_s": float(arrays["time"][-1]) if len(arrays["time"]) else 0.0,
         "integrator": {"name": p.scene.integrator, "dt": p.dt if p.scene.integrator == "explicit" else None,
+                       "dt_near_bodies": p.near_dt,
                        "dt_min": stats.dt_min if stats.steps else None, "dt_max": stats.dt_max or None,
                        "stable_step": p.model.stable_step() if hasattr(p.model, "stable_step") else None},
         "model": {"type": p.scene.model.type, "nodes": structure.n_nodes,

@@ -32,8 +32,8 @@ FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
 TRAVEL_FRACTION = 0.5
-"""Largest travel of a thread point near a body in one step, as a fraction of the smaller of the
-thinnest thread radius and the body's half thickness, (E3)."""
+"""Largest travel of a thread point near a body in one step, as a fraction of the body's half
+thickness plus the thinnest thread radius, (E3)."""
 
 SHAPE_CODES = {"box": 0, "cylinder": 1, "sphere": 2, "mesh": 3}
 """Shape kind as the compiled kernels number it."""
@@ -274,8 +274,8 @@ def build_body_contact(scene: Scene, structure: Structure) -> BodyContact | None
     law = ContactLaw(stiffness=spec.stiffness, damping=spec.damping, friction=spec.friction,
                      smoothing=spec.smoothing, slip_velocity=spec.slip_velocity)
     radius = 0.5 * np.array([m.diameter for m in scene.materials])[structure.material]
-    travel = TRAVEL_FRACTION * np.minimum(float(radius.min()),
-                                          np.array([_half_thickness(s) for s in shapes]))
+    travel = TRAVEL_FRACTION * (np.array([_half_thickness(s) for s in shapes])
+                                + float(radius.min()))
     mass = np.array([_mass(b, s) for b, s in zip(scene.bodies, shapes)])
     rotation = np.array([p[0] for p in poses])
     omega_body = np.radians(np.array([b.angular_velocity_deg for b in scene.bodies], float))
@@ -341,9 +341,8 @@ def check_start_clear(contact: BodyContact, structure: Structure) -> None:
 
 
 def check_contact_supported(scene: Scene) -> None:
-    """Refuse scenes with bodies that this version cannot run: Cosserat rods with bending or
-    torsion (contact is modelled for the lumped model and cable threads), ``rk45``, and free
-    bodies in static runs or with an implicit integrator.
+    """Refuse scenes with bodies that this version cannot run: ``rk45``, and free bodies in
+    static runs or with an implicit integrator (so also with rods that bend or twist).
 
     Raises
     ------
@@ -351,12 +350,6 @@ def check_contact_supported(scene: Scene) -> None:
     """
     if not scene.bodies:
         return
-    model = scene.model
-    if model.type == "cosserat" and (model.bending or model.torsion):
-        raise SceneError("bodies", [b.name for b in scene.bodies],
-                         "contact with rigid bodies is modelled for model.type = 'lumped' and "
-                         "for cable threads (model.type = 'cosserat' with bending = false and "
-                         "torsion = false) only, not yet for rods with bending or torsion")
     if scene.simulation.type == "dynamic" and scene.integrator == "rk45":
         raise SceneError("simulation.integrator", "rk45", "rk45 does not model contact; scenes "
                          "with [[bodies]] need 'explicit' or an implicit integrator "

@@ -15,6 +15,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+from numpy.typing import NDArray
 
 from rodnet.contact.bodies import BodyContact
 from rodnet.contact.broadphase import (ContactPoints, body_point_velocity, body_reaction,
@@ -42,16 +43,46 @@ def _world_query(contact: BodyContact, b: int, local: FloatArray) -> SurfaceQuer
                         np.einsum("ij,pj->pi", R, q.closest) + p, gradient)
 
 
+_NO_POINTS = ContactPoints(np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3)),
+                          np.zeros(0))
+"""No candidate point (a body out of reach)."""
+
+
+def bodies_in_reach(contact: BodyContact, x: FloatArray) -> NDArray[np.bool_]:
+    """Which bodies a thread point may touch at positions ``x`` (N, 3), (B,) bool.
+
+    A cheap bounding-sphere test, the clearance of (E4): body b is out of reach when every
+    segment's midpoint is farther from the body's centre than the body's bounding radius, the
+    segment's half length, its radius and the law's smoothing together. A body out of reach has
+    no point that presses on it.
+    """
+    from rodnet.kernels.contact_compiled import segment_clearance
+
+    bound_radius = contact.__dict__.get("_bound_radius")
+    if bound_radius is None:
+        bound_radius = np.array([np.linalg.norm(np.abs(s.bounds).max(axis=0))
+                                 for s in contact.shapes])
+        object.__setattr__(contact, "_bound_radius", bound_radius)
+    gap = segment_clearance(np.ascontiguousarray(x, dtype=np.float64), contact.segments,
+                            contact.radius, float(contact.law.smoothing),
+                            contact.motion.position, bound_radius)
+    return gap <= 0.0
+
+
 def body_points(contact: BodyContact, x: FloatArray, v: FloatArray) -> list[BodyPoints]:
     """Contact points and point forces for every body at positions ``x`` and velocities ``v``
     (N, 3), with the bodies at ``contact.motion``."""
     endpoints = x[contact.segments]
     motion = contact.motion
+    near = bodies_in_reach(contact, x)
     out = []
     for b, shape in enumerate(contact.shapes):
-        points = contact_points(endpoints, contact.radius, motion.position[b],
-                                motion.rotation[b], shape.bounds, contact.law.smoothing,
-                                contact.points_per_segment, contact.segments)
+        if near[b]:
+            points = contact_points(endpoints, contact.radius, motion.position[b],
+                                    motion.rotation[b], shape.bounds, contact.law.smoothing,
+                                    contact.points_per_segment, contact.segments)
+        else:
+            points = _NO_POINTS
         if not len(points.segment):  # far from the body: the same empty result every time
             if "_no_points" not in contact.__dict__:
                 object.__setattr__(contact, "_no_points", _evaluate(contact, b, points, v))
@@ -131,6 +162,8 @@ def contact_state(contact: BodyContact, x: FloatArray, v: FloatArray) -> Contact
     total, count, power = 0.0, 0, 0.0
     body_force = np.zeros((contact.n_bodies, 3))
     body_moment = np.zeros((contact.n_bodies, 3))
+    if not bodies_in_reach(contact, x).any():  # the common case while the target is far
+        return ContactState(total, count, body_force, body_moment, power)
     for b, bp in enumerate(body_points(contact, x, v)):
         f = bp.forces.force
         total += float(np.linalg.norm(f, axis=1).sum())
@@ -164,3 +197,4 @@ def step_travel(contact: BodyContact, x_old: FloatArray, x_new: FloatArray) -> f
         if near.any():
             worst = max(worst, float(seg_move[near].max()) / float(contact.travel_limit[k]))
     return worst
+

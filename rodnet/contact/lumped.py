@@ -20,7 +20,7 @@ import numpy as np
 
 from rodnet.config import Scene
 from rodnet.contact.bodies import BodyContact, build_body_contact
-from rodnet.contact.forces import contact_state, nodal_force, nodal_tangents, step_travel
+from rodnet.contact.forces import bodies_in_reach, contact_state, nodal_force, nodal_tangents, step_travel
 from rodnet.contact.laws import normal_energy
 from rodnet.contact.rigid_body import kinetic_energy
 from rodnet.integrate.frames import StepStats
@@ -49,8 +49,9 @@ class LumpedContactModel(LumpedModel):
             out["kinetic"] += kinetic_energy(c.mass, c.inertia, c.motion, c.free)
             out["potential"] -= float(np.sum(c.mass[c.free] * (c.motion.position[c.free]
                                                                 @ c.gravity)))
-        out["contact"] = sum(_penalty_energy(self.contact, b, np.asarray(x))
-                             for b in range(self.contact.n_bodies))
+        x = np.asarray(x)
+        near = bodies_in_reach(self.contact, x)
+        out["contact"] = sum(_penalty_energy(self.contact, b, x) for b in np.flatnonzero(near))
         return out
 
     def generalized_force(self, x: FloatArray, v: FloatArray, t: float,
@@ -76,6 +77,11 @@ class LumpedContactModel(LumpedModel):
         if not math.isfinite(contact):
             return segments
         return 1.0 / math.sqrt(1.0 / segments**2 + 1.0 / contact**2)
+
+    def far_stable_step(self) -> float:
+        """(S10) of the threads alone [s]: the explicit loop's step limit while no body is within
+        reach of a thread (E5)."""
+        return super().stable_step()
 
     def active_set(self, x: FloatArray, v: FloatArray) -> int:
         pressed = nodal_force(self.contact, x, v.reshape(-1, 3))

@@ -65,8 +65,8 @@ class ContactLog:
             self.recorder(t, q, v)
         finally:
             if len(self.recorder.time) > kept:
-                state = contact_state(contact, np.asarray(q).reshape(-1, 3),
-                                      np.asarray(v).reshape(-1, 3))
+                x = np.asarray(getattr(q, "x", q)).reshape(-1, 3)  # rods: q.x; else x
+                state = contact_state(contact, x, np.asarray(v)[:x.size].reshape(-1, 3))
                 self.total_force.append(state.total_force)
                 self.count.append(state.count)
                 self.body_force.append(state.body_force)

@@ -109,34 +109,35 @@ def _coefficients(angle):  # pragma: no cover - compiled
 
 @numba.njit(cache=True)
 def _solve3(A, r, out):  # pragma: no cover - compiled
-    """Solve the 3 x 3 system ``A out = r`` by Cramer's rule."""
-    det = (A[0, 0] * (A[1, 1] * A[2, 2] - A[1, 2] * A[2, 1])
-           - A[0, 1] * (A[1, 0] * A[2, 2] - A[1, 2] * A[2, 0])
-           + A[0, 2] * (A[1, 0] * A[2, 1] - A[1, 1] * A[2, 0]))
-    for col in range(3):
-        M = A.copy()
-        for i in range(3):
-            M[i, col] = r[i]
-        out[col] = (M[0, 0] * (M[1, 1] * M[2, 2] - M[1, 2] * M[2, 1])
-                    - M[0, 1] * (M[1, 0] * M[2, 2] - M[1, 2] * M[2, 0])
-                    + M[0, 2] * (M[1, 0] * M[2, 1] - M[1, 1] * M[2, 0])) / det
+    """Solve the 3 x 3 system ``A out = r`` by Cramer's rule (no temporary arrays: this runs in
+    every step of every free body)."""
+    c00 = A[1, 1] * A[2, 2] - A[1, 2] * A[2, 1]
+    c01 = A[1, 2] * A[2, 0] - A[1, 0] * A[2, 2]
+    c02 = A[1, 0] * A[2, 1] - A[1, 1] * A[2, 0]
+    det = A[0, 0] * c00 + A[0, 1] * c01 + A[0, 2] * c02
+    # out = adj(A) r / det, adj(A) the transposed cofactor matrix
+    out[0] = (c00 * r[0] + (A[0, 2] * A[2, 1] - A[0, 1] * A[2, 2]) * r[1]
+              + (A[0, 1] * A[1, 2] - A[0, 2] * A[1, 1]) * r[2]) / det
+    out[1] = (c01 * r[0] + (A[0, 0] * A[2, 2] - A[0, 2] * A[2, 0]) * r[1]
+              + (A[0, 2] * A[1, 0] - A[0, 0] * A[1, 2]) * r[2]) / det
+    out[2] = (c02 * r[0] + (A[0, 1] * A[2, 0] - A[0, 0] * A[2, 1]) * r[1]
+              + (A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]) * r[2]) / det
 
 
 @numba.njit(cache=True)
-def rotation_increment(J, inv_J, pi, h, f):  # pragma: no cover - compiled
+def rotation_increment(J, inv_J, pi, h, f, work):  # pragma: no cover - compiled
     """Solve (R3) ``h pi = a(|f|) J f + b(|f|) f x J f`` for the body-frame rotation vector ``f``
     (3,) of one torque-free step of length ``h``, by Newton's method from ``h J^-1 pi``.
 
     ``pi`` (3,) is the angular momentum in body axes at the start of the step; the step rotates
-    the body by ``R <- R exp(hat f)`` and leaves the world angular momentum unchanged. Returns
-    the number of Newton iterations."""
+    the body by ``R <- R exp(hat f)`` and leaves the world angular momentum unchanged. ``work``
+    (7, 3) is scratch space. Returns the number of Newton iterations."""
     for k in range(3):
         f[k] = h * (inv_J[k, 0] * pi[0] + inv_J[k, 1] * pi[1] + inv_J[k, 2] * pi[2])
     scale = abs(f[0]) + abs(f[1]) + abs(f[2])
     if scale == 0.0:
         return 0
-    Jf, c, G, delta = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
-    A = np.empty((3, 3))
+    Jf, c, G, delta, A = work[0], work[1], work[2], work[3], work[4:7]
     for iteration in range(1, 31):
         angle = math.sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2])
         a, b, da, db = _coefficients(angle)
@@ -197,12 +198,14 @@ def _quaternion_step(q, f, R):  # pragma: no cover - compiled
 
 @numba.njit(cache=True)
 def advance_bodies(dt, body_force, body_moment, inv_mass, inertia, inv_inertia, gravity,
-                   position, velocity, quaternion, rotation, momentum, omega):  # pragma: no cover
+                   position, velocity, quaternion, rotation, momentum, omega,
+                   work):  # pragma: no cover
     """One step (R1)-(R4) of every free body (``inv_mass`` > 0), in place.
 
     ``body_force``, ``body_moment`` (B, 3) are the force of the threads on each body [N] and its
-    moment about the centre of mass [N m] at the start of the step; ``gravity`` (3,) [m/s^2]."""
-    pi, f = np.empty(3), np.empty(3)
+    moment about the centre of mass [N m] at the start of the step; ``gravity`` (3,) [m/s^2].
+    ``work`` (9, 3) is scratch space (allocated once by the caller: this runs every step)."""
+    pi, f = work[0], work[1]
     for b in range(position.shape[0]):
         if inv_mass[b] == 0.0:
             continue
@@ -213,7 +216,7 @@ def advance_bodies(dt, body_force, body_moment, inv_mass, inertia, inv_inertia, 
             momentum[b, k] += dt * body_moment[b, k]
         for k in range(3):
             pi[k] = R[0, k] * momentum[b, 0] + R[1, k] * momentum[b, 1] + R[2, k] * momentum[b, 2]
-        rotation_increment(inertia[b], inv_inertia[b], pi, dt, f)  # (R3)
+        rotation_increment(inertia[b], inv_inertia[b], pi, dt, f, work[2:])  # (R3)
         _quaternion_step(quaternion[b], f, R)
         # (R4): omega = R J^-1 R^T L
         for k in range(3):

@@ -59,10 +59,12 @@ def diverged(t: float, h: float, limit: float, scene: str = "this scene") -> Sim
 def integrate_explicit(model: LumpedModel, x0: NDArray[np.float64], v0: NDArray[np.float64],
                        times: NDArray[np.float64], dt: float, on_frame: FrameSink,
                        on_progress: ProgressSink | None = None,
-                       stats: StepStats | None = None) -> StepStats:
+                       stats: StepStats | None = None, near_dt: float | None = None) -> StepStats:
     """Step from ``times[0]`` to ``times[-1]``, handing every frame time's state to ``on_frame``.
 
-    Between two frames the step is ``dt`` shrunk so that a whole number of steps fits.
+    Between two frames the step is ``dt`` shrunk so that a whole number of steps fits. With rigid
+    bodies, ``near_dt`` [s] (default ``dt``) is the step while a body is within reach of a thread
+    (:func:`rodnet.integrate.explicit_contact.march_with_contact`).
 
     Raises
     ------
@@ -76,7 +78,7 @@ def integrate_explicit(model: LumpedModel, x0: NDArray[np.float64], v0: NDArray[
     if getattr(model, "contact", None) is not None:
         from rodnet.integrate.explicit_contact import march_with_contact
 
-        return march_with_contact(model, x, v, times, dt, on_frame, on_progress, stats)
+        return march_with_contact(model, x, v, times, dt, on_frame, on_progress, stats, near_dt)
     k = model.kernel_arguments()
     args = (*k[:6], model.inv_mass, *k[6:])
     for t_start, t_end in zip(times[:-1], times[1:]):

@@ -8,7 +8,10 @@ scene's ``dt`` shrunk so that a whole number of steps fits, as without bodies. W
 near a body would move more than the body's travel limit (E3) in one step (checked with the velocities
 at the start of every step), the loop stops before that step and the rest of the frame interval is
 taken with 0.9 times the step that respects the limit; the next frame interval starts again from
-``dt``. Friction work goes to ``stats.extra["friction_work"]`` [J].
+``dt``. ``dt`` may exceed the stable step with the contact springs, ``near_dt`` (E1): the loop
+takes it only while no body is within reach (E5); when a body comes within reach the rest of the
+frame interval is taken with ``near_dt`` (or shorter). Friction work goes to
+``stats.extra["friction_work"]`` [J].
 """
 
 from __future__ import annotations
@@ -32,9 +35,11 @@ MIN_STEP_FRACTION = 1e-6
 
 def march_with_contact(model: LumpedContactModel, x: NDArray[np.float64], v: NDArray[np.float64],
                        times: NDArray[np.float64], dt: float, on_frame: FrameSink,
-                       on_progress: ProgressSink | None, stats: StepStats) -> StepStats:
+                       on_progress: ProgressSink | None, stats: StepStats,
+                       near_dt: float | None = None) -> StepStats:
     """Step ``x``, ``v`` (N, 3) in place from ``times[0]`` to ``times[-1]``; the start frame has
-    been handed on already.
+    been handed on already. ``near_dt`` [s]: the step while a body is within reach (default
+    ``dt``).
 
     Raises
     ------
@@ -59,16 +64,17 @@ def march_with_contact(model: LumpedContactModel, x: NDArray[np.float64], v: NDA
     travelled = np.zeros(contact.n_bodies)
     scratch = np.empty_like(x)
     stats.extra.setdefault("friction_work", 0.0)
+    near_dt = dt if near_dt is None else min(near_dt, dt)
     for t_start, t_end in zip(times[:-1], times[1:]):
         t, step = float(t_start), dt
         while True:
             n_steps, h = whole_steps(t, t_end, step)
             peak, done, work, status, allowed = advance_contact(
                 x, v, scratch, t, h, n_steps, *lumped, *bodies, taken, body_force, body_moment,
-                clearance, travelled)
+                clearance, travelled, near_dt)
             if done:
                 stats.record_step(h, done)
-            stats.function_evaluations += done + (status == 2)
+            stats.function_evaluations += done + (status in (2, 3))
             stats.max_tension = max(stats.max_tension, peak)
             stats.extra["friction_work"] += work
             if status == 1 or not np.isfinite(v).all():
@@ -77,7 +83,7 @@ def march_with_contact(model: LumpedContactModel, x: NDArray[np.float64], v: NDA
             if status == 0:
                 break
             t += done * h
-            step = 0.9 * allowed
+            step = allowed if status == 3 else 0.9 * allowed
             if step < MIN_STEP_FRACTION * dt:
                 raise SimulationFailed(
                     f"at t = {t:.6g} s a thread point near a body moves so fast that a step within "

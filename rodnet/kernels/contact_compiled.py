@@ -17,7 +17,8 @@ step resolves without overshoot; it only acts below a slip speed of order
 nodes could reach a body within the step reports the step that keeps its travel within the body's
 travel limit, so the loop can shorten the step before a point jumps over a thin body. The loop
 (:func:`advance_contact`) visits a body only when a thread can have come within its reach since
-the last visit (E4), and moves the free bodies with (R1)-(R4)
+the last visit (E4), stops before visiting one at a step longer than the stable step with the
+contact springs (E5), and moves the free bodies with (R1)-(R4)
 (:func:`rodnet.contact.rigid_body.advance_bodies`).
 """
 
@@ -219,6 +220,27 @@ def body_speed(body_velocity, body_omega, bound_radius, b):  # pragma: no cover 
 
 
 @numba.njit(cache=True)
+def segment_clearance(x, segments, radius, smoothing, body_position, bound_radius):  # pragma: no cover
+    """Smallest gap [m] between the bounding sphere of a segment (midpoint, half its length),
+    grown by its radius and the law's smoothing, and each body's bounding sphere (centre
+    ``body_position`` (B, 3), radius ``bound_radius`` (B,)): (B,) float, the clearance of (E4).
+    A body with a positive clearance has no contact point."""
+    out = np.full(body_position.shape[0], np.inf)
+    for s in range(segments.shape[0]):
+        a, b = segments[s, 0], segments[s, 1]
+        half = 0.5 * math.sqrt((x[b, 0] - x[a, 0]) ** 2 + (x[b, 1] - x[a, 1]) ** 2
+                               + (x[b, 2] - x[a, 2]) ** 2)
+        for bi in range(body_position.shape[0]):
+            far = 0.0
+            for k in range(3):
+                far += (0.5 * (x[a, k] + x[b, k]) - body_position[bi, k]) ** 2
+            gap = math.sqrt(far) - bound_radius[bi] - half - radius[s] - smoothing
+            if gap < out[bi]:
+                out[bi] = gap
+    return out
+
+
+@numba.njit(cache=True)
 def accumulate_contact(x, v, force, dt, inv_mass, segments, radius, node_share,
                        kind, body_size, body_bounds, bound_radius, travel_limit, body_compliance,
                        mesh_root, tri, lower, upper, left, right, start, count,
@@ -350,10 +372,15 @@ def advance_contact(x, v, force, t0, dt, n_steps,
                     body_position, body_rotation, body_velocity, body_omega,
                     body_quaternion, body_momentum, body_inv_mass, body_inertia,
                     body_inv_inertia, body_gravity,
-                    taken, body_force, body_moment, clearance, travelled):  # pragma: no cover
+                    taken, body_force, body_moment, clearance, travelled,
+                    near_dt):  # pragma: no cover
     """Advance ``x``, ``v`` (N, 3) and the free bodies in place by up to ``n_steps`` steps:
     symplectic Euler (S9) of the nodes with segment forces, external loads and contact, and
     (R1)-(R4) of the free bodies (``body_inv_mass`` > 0).
+
+    ``near_dt`` [s] is the stable step with the contact springs (E1): a step longer than it is
+    taken only while no body is evaluated (E5); the loop stops before a step that would evaluate
+    a body at a longer step (status 3).
 
     A body's contact is evaluated only in steps where some segment could have come within its
     reach: ``clearance`` (B,) is the gap found at the last evaluation and ``travelled`` (B,) an
@@ -370,13 +397,17 @@ def advance_contact(x, v, force, t0, dt, n_steps,
         Work dissipated by friction over those steps [J].
     status : int
         0: all steps done; 1: a non-finite value appeared (in step ``done``); 2: stopped before
-        step ``done + 1`` because a point near a body would move more than its travel limit.
+        step ``done + 1`` because a point near a body would move more than its travel limit;
+        3: stopped before step ``done + 1`` because a body comes within reach at a step longer
+        than ``near_dt``.
     allowed_step : float
-        For status 2, the step [s] that respects the travel limit at that moment.
+        For status 2, the step [s] that respects the travel limit at that moment; for
+        status 3 (a body comes within reach at a step longer than ``near_dt``), ``near_dt``.
     """
     max_tension, work = 0.0, 0.0
     n_bodies = kind.shape[0]
     active = np.zeros(n_bodies, np.bool_)
+    scratch = np.empty((9, 3))  # for the free bodies' update
     node_speed = 0.0
     for i in range(x.shape[0]):
         node_speed = max(node_speed, v[i, 0] ** 2 + v[i, 1] ** 2 + v[i, 2] ** 2)
@@ -397,6 +428,11 @@ def advance_contact(x, v, force, t0, dt, n_steps,
                 for k in range(3):
                     body_force[b, k] = body_moment[b, k] = 0.0
         power, allowed = 0.0, np.inf
+        if any_active and dt > near_dt * (1.0 + 1e-12):  # (E5): contact needs the shorter step
+            for b in range(n_bodies):
+                if active[b]:
+                    clearance[b] = -np.inf
+            return max_tension, step, work, 3, near_dt
         if any_active:
             power, _, _, allowed = accumulate_contact(
                 x, v, force, dt, inv_mass, segments, radius, node_share, kind, body_size,
@@ -415,7 +451,7 @@ def advance_contact(x, v, force, t0, dt, n_steps,
         finite, node_speed = _update_nodes(x, v, force, inv_mass, dt)
         advance_bodies(dt, body_force, body_moment, body_inv_mass, body_inertia,
                        body_inv_inertia, body_gravity, body_position, body_velocity,
-                       body_quaternion, body_rotation, body_momentum, body_omega)
+                       body_quaternion, body_rotation, body_momentum, body_omega, scratch)
         for b in range(n_bodies):
             travelled[b] += dt * (2.0 * node_speed + body_speed(body_velocity, body_omega,
                                                                 bound_radius, b))

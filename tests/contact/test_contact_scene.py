@@ -154,11 +154,15 @@ fixed = true
     assert info.value.key == "bodies[0]"
 
 
-def test_contact_needs_the_lumped_model_or_cables_and_no_rk45() -> None:
-    with pytest.raises(SceneError, match="cable threads") as info:
-        prepare(scene_from_toml(with_body(), ["model.type=cosserat",
+def test_rods_touch_bodies_and_rk45_does_not() -> None:
+    rods = prepare(scene_from_toml(with_body(), ["model.type=cosserat",
+                                                 'simulation.integrator="generalized-alpha"']))
+    assert rods.model.contact.names == ("target",) and rods.model.n_rot > 0
+    with pytest.raises(SceneError, match="free bodies move with") as info:
+        prepare(scene_from_toml(with_body(), ["model.type=cosserat", "bodies[0].fixed=false",
+                                              "bodies[0].mass=10.0",
                                               'simulation.integrator="generalized-alpha"']))
-    assert info.value.key == "bodies"
+    assert info.value.key == "simulation.integrator"
     with pytest.raises(SceneError, match="rk45 does not model contact") as info:
         prepare(scene_from_toml(with_body(), ['simulation.integrator="rk45"']))
     assert info.value.key == "simulation.integrator"
