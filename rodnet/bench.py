@@ -142,7 +142,8 @@ def run_one(run: BenchRun, folder: Path, timeout: float | None = None) -> dict[s
     ``folder/runs/<label>.json``.
 
     A run still going after ``timeout`` seconds is interrupted (SIGINT, as Ctrl-C): it keeps its
-    frames and reports how far it got, with ``timed_out`` set in the record.
+    frames and reports how far it got, with ``timed_out`` set in the record; one still going 120 s
+    after the interrupt is killed (recorded as failed).
     """
     store = folder / "runs" / f"{run.label}.json"
     if store.is_file():
@@ -157,7 +158,11 @@ def run_one(run: BenchRun, folder: Path, timeout: float | None = None) -> dict[s
         except subprocess.TimeoutExpired:
             timed_out = True
             child.send_signal(signal.SIGINT)
-            stdout, stderr = child.communicate()
+            try:  # a run saves its frames on SIGINT; one that ignores it is killed
+                stdout, stderr = child.communicate(timeout=120)
+            except subprocess.TimeoutExpired:
+                child.kill()
+                stdout, stderr = child.communicate()
     if child.returncode not in (0, 1) or not stdout.strip():
         record: dict[str, Any] = {"summary": {"status": "failed", "message": stderr.strip()[-300:]},
                                   "series": {}}
