@@ -30,6 +30,7 @@ import signal
 import subprocess
 import sys
 import tempfile
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -137,19 +138,26 @@ def default_study(quick: bool = False) -> Study:
     return Study(runs, references, duration)
 
 
-def run_one(run: BenchRun, folder: Path, timeout: float | None = None) -> dict[str, Any]:
-    """Run (or reuse the stored result of) one case; the record is also written to
-    ``folder/runs/<label>.json``.
+GRACE = 120.0
+"""Seconds a run may take to save its frames after the interrupt before it is killed."""
+
+
+def run_one(run: BenchRun, folder: Path, timeout: float | None = None,
+            grace: float = GRACE) -> dict[str, Any]:
+    """Run (or reuse the stored result of) one case in its own process; the record is also
+    written to ``folder/runs/<label>.json``.
 
     A run still going after ``timeout`` seconds is interrupted (SIGINT, as Ctrl-C): it keeps its
-    frames and reports how far it got, with ``timed_out`` set in the record; one still going 120 s
-    after the interrupt is killed (recorded as failed).
+    frames and reports how far it got, with ``timed_out`` set in the record; one still going
+    ``grace`` seconds after the interrupt is killed, recorded as failed with ``hung`` set. The
+    record also holds the child's ``returncode`` and the wall time seen here, ``parent_wall_s``.
     """
     store = folder / "runs" / f"{run.label}.json"
     if store.is_file():
         return json.loads(store.read_text())
     store.parent.mkdir(parents=True, exist_ok=True)
-    timed_out = False
+    timed_out = hung = False
+    start = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="rodnet-bench-") as out:
         child = subprocess.Popen([sys.executable, "-c", CHILD, json.dumps(list(run.overrides)), out],
                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -159,18 +167,23 @@ def run_one(run: BenchRun, folder: Path, timeout: float | None = None) -> dict[s
             timed_out = True
             child.send_signal(signal.SIGINT)
             try:  # a run saves its frames on SIGINT; one that ignores it is killed
-                stdout, stderr = child.communicate(timeout=120)
+                stdout, stderr = child.communicate(timeout=grace)
             except subprocess.TimeoutExpired:
+                hung = True
                 child.kill()
                 stdout, stderr = child.communicate()
-    if child.returncode not in (0, 1) or not stdout.strip():
-        record: dict[str, Any] = {"summary": {"status": "failed", "message": stderr.strip()[-300:]},
-                                  "series": {}}
+    lines = stdout.strip().splitlines()
+    if hung or child.returncode not in (0, 1) or not lines:
+        tail = stderr.strip().splitlines()
+        message = (f"did not end within {grace:g} s of the interrupt; killed" if hung else
+                   tail[-1] if tail else f"exit status {child.returncode}, no output")
+        record: dict[str, Any] = {"summary": {"status": "failed", "message": message}, "series": {}}
     else:
-        record = json.loads(stdout.strip().splitlines()[-1])
-    record["timed_out"] = timed_out
-    record["run"] = {"curve": run.curve, "setting": run.setting, "family": run.family,
-                     "overrides": list(run.overrides)}
+        record = json.loads(lines[-1])
+    record.update(timed_out=timed_out, hung=hung, returncode=child.returncode,
+                  parent_wall_s=time.perf_counter() - start,
+                  run={"curve": run.curve, "setting": run.setting, "family": run.family,
+                       "overrides": list(run.overrides)})
     store.write_text(json.dumps(record))
     return record
 

@@ -27,23 +27,16 @@ from __future__ import annotations
 
 import argparse
 import csv
-import json
 import re
-import signal
-import subprocess
-import sys
-import tempfile
-import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from rodnet.bench import CHILD, BenchRun
+from rodnet.bench import GRACE, BenchRun, run_one
 
 HERE = Path(__file__).parent
 RESULTS = HERE / "results"
-GRACE = 120.0
 GA = ("simulation.integrator=generalized-alpha",)
 MODELS = {"cosserat": ("model.type=cosserat", "model.knots=pinned", *GA),
           "cosserat-rigid": ("model.type=cosserat", "model.knots=rigid", *GA),
@@ -68,44 +61,6 @@ CAUSES = [("Newton failed", r"Newton's method failed"),
           ("step too small", r"step fell below"),
           ("refused: explicit limit", r"explicit stability limit"),
           ("refused: bad input", r"bad input|SceneError")]
-
-
-def run_record(run: BenchRun, folder: Path, limit: float) -> dict[str, Any]:
-    """Run (or reuse the stored record of) one case in its own process, as ``rodnet bench``
-    does; interrupt it (SIGINT) after ``limit`` s, kill it if it then does not end."""
-    store = folder / "runs" / f"{run.label}.json"
-    if store.is_file():
-        return json.loads(store.read_text())
-    store.parent.mkdir(parents=True, exist_ok=True)
-    timed_out = hung = False
-    start = time.perf_counter()
-    with tempfile.TemporaryDirectory(prefix="rodnet-sweep-") as out:
-        child = subprocess.Popen([sys.executable, "-c", CHILD, json.dumps(list(run.overrides)), out],
-                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        try:
-            stdout, stderr = child.communicate(timeout=limit)
-        except subprocess.TimeoutExpired:
-            timed_out = True
-            child.send_signal(signal.SIGINT)
-            try:
-                stdout, stderr = child.communicate(timeout=GRACE)
-            except subprocess.TimeoutExpired:
-                hung = True
-                child.kill()
-                stdout, stderr = child.communicate()
-    lines = stdout.strip().splitlines()
-    if hung or child.returncode not in (0, 1) or not lines:
-        tail = stderr.strip().splitlines()
-        message = (f"did not end within {GRACE:g} s of the interrupt; killed" if hung else
-                   tail[-1] if tail else f"exit status {child.returncode}, no output")
-        record: dict[str, Any] = {"summary": {"status": "failed", "message": message}, "series": {}}
-    else:
-        record = json.loads(lines[-1])
-    record.update(timed_out=timed_out, hung=hung, returncode=child.returncode,
-                  parent_wall_s=time.perf_counter() - start,
-                  run={"curve": run.curve, "setting": run.setting, "overrides": list(run.overrides)})
-    store.write_text(json.dumps(record))
-    return record
 
 
 def verdict(record: dict) -> dict[str, Any]:
@@ -147,7 +102,7 @@ def sweep(model: str, n: int, duration: float, limit: float, dts: list[float]) -
                                             f"simulation.dt={dt:g}", f"simulation.duration={duration:g}")
                            + overrides)
             row = {"model": model, "dt": dt, "variation": name, "overrides": " ".join(overrides),
-                   **verdict(run_record(run, RESULTS / f"stability_{model}_{duration:g}s", limit))}
+                   **verdict(run_one(run, RESULTS / f"stability_{model}_{duration:g}s", limit, GRACE))}
             rows.append(row)
             print(f"{model} | dt {dt:g} | {name} | {row['outcome']} {row['cause']} | "
                   f"t = {_f(row['simulated_s'], '.3g')} s | {_f(row['wall_s'], '.1f')} s | "
