@@ -22,6 +22,20 @@ from rodnet.kernels.sparse_lu_compiled import (elimination_tree, factor_numeric,
 FloatArray = NDArray[np.float64]
 
 
+Pattern = tuple[NDArray[np.int32], NDArray[np.int32]]
+"""A CSR sparsity pattern: ``(indptr, indices)``."""
+
+
+def same_pattern(pattern: Pattern | None, matrix: sp.csr_matrix) -> bool:
+    """Whether the CSR ``matrix`` has ``pattern`` (the same index arrays, or equal ones)."""
+    if pattern is None:
+        return False
+    indptr, indices = pattern
+    if matrix.indptr is indptr and matrix.indices is indices:
+        return True
+    return np.array_equal(matrix.indptr, indptr) and np.array_equal(matrix.indices, indices)
+
+
 class StaticPatternLU:
     """LU without pivoting for every matrix with one symmetric CSR pattern.
 
@@ -93,12 +107,7 @@ class StaticPatternLU:
 
     def matches(self, matrix: sp.csr_matrix) -> bool:
         """Whether ``matrix`` has this object's pattern."""
-        if matrix.shape[0] != self.n:
-            return False
-        if matrix.indptr is self.indptr and matrix.indices is self.indices:
-            return True
-        return (np.array_equal(matrix.indptr, self.indptr)
-                and np.array_equal(matrix.indices, self.indices))
+        return same_pattern((self.indptr, self.indices), matrix)
 
     def factorize(self, matrix: sp.csr_matrix) -> bool:
         """Numeric factorisation of ``matrix`` (this pattern); False when a pivot is (nearly)

@@ -9,7 +9,9 @@ triads, so any choice is stress-free; parallel transport keeps the reference twi
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 from numpy.typing import NDArray
+from scipy.sparse.csgraph import breadth_first_order
 
 from rodnet.config import Scene
 from rodnet.errors import SceneError
@@ -92,9 +94,6 @@ def align_quaternion_signs(quat_nodes: FloatArray, rot_nodes: NDArray[np.int64],
     quat_nodes : (R, 4) float
     end_offset : (E, 2, 4) float or None
     """
-    import scipy.sparse as sp
-    from scipy.sparse.csgraph import breadth_first_order
-
     def relative_w(q: FloatArray, offset: FloatArray | None) -> FloatArray:
         ends = q[rot_nodes]
         if offset is not None:

@@ -17,7 +17,6 @@ c = (1 - alpha_f) / (1 - alpha_m). The consistent start is a0 = vd0 = -M^-1 g(q0
 from __future__ import annotations
 
 import math
-
 from dataclasses import dataclass, field
 from typing import Any
 

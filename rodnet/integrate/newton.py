@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 from scipy.linalg.lapack import dgbtrf as _gbtrf, dgbtrs as _gbtrs, dgetrf as _getrf, dgetrs as _getrs
 
 from rodnet.assembly import DENSE_LIMIT, BandedMatrix, IterationMatrix
-from rodnet.sparse_lu import StaticPatternLU
+from rodnet.sparse_lu import Pattern, StaticPatternLU, same_pattern
 
 FloatArray = NDArray[np.float64]
 
@@ -61,8 +61,9 @@ class LinearSolver:
     A CSR matrix is factorised by dense LAPACK below ``dense_limit`` unknowns and above by the
     fixed-pattern sparse LU of :mod:`rodnet.sparse_lu` once its pattern has come twice in a row
     (the analysis is then reused for every later matrix of that pattern), by SuperLU otherwise
-    and whenever the fixed-pattern LU meets a (nearly) zero pivot. A model may instead hand over its matrix already in LAPACK's band storage
-    (:class:`~rodnet.assembly.BandedMatrix`) or as a dense array, which are factorised as given.
+    and whenever the fixed-pattern LU meets a (nearly) zero pivot. A model may instead hand over
+    its matrix already in LAPACK's band storage (:class:`~rodnet.assembly.BandedMatrix`) or as a
+    dense array, which are factorised as given.
     """
 
     dense_limit = DENSE_LIMIT
@@ -71,7 +72,8 @@ class LinearSolver:
         self.lu: Any = None
         self.factorizations = 0
         self._static: StaticPatternLU | None = None
-        self._seen_pattern: tuple[NDArray[np.int32], NDArray[np.int32]] | None = None
+        self._seen_pattern: Pattern | None = None
+        self._unsymmetric: Pattern | None = None   # a pattern the fixed-pattern LU refused
 
     def factorize(self, matrix: IterationMatrix) -> None:
         """Factorise. A band matrix is factorised in place (its storage is overwritten), a dense
@@ -118,18 +120,19 @@ class LinearSolver:
 
     def _static_lu(self, matrix: sp.csr_matrix) -> StaticPatternLU | None:
         """The fixed-pattern LU for ``matrix``'s pattern, analysed when the same pattern comes a
-        second time in a row (a pattern seen once may never come back)."""
+        second time in a row (a pattern seen once may never come back); None for a pattern it
+        cannot take (not structurally symmetric), which is then not analysed again."""
         if self._static is not None and self._static.matches(matrix):
             return self._static
-        seen = self._seen_pattern
-        self._seen_pattern = (matrix.indptr, matrix.indices)
-        if seen is None or not (np.array_equal(seen[0], matrix.indptr)
-                                and np.array_equal(seen[1], matrix.indices)):
+        if same_pattern(self._unsymmetric, matrix):
+            return None
+        seen, self._seen_pattern = self._seen_pattern, (matrix.indptr, matrix.indices)
+        if not same_pattern(seen, matrix):
             return None
         try:
             self._static = StaticPatternLU(matrix)
         except ValueError:  # not structurally symmetric
-            self._static = None
+            self._static, self._unsymmetric = None, (matrix.indptr, matrix.indices)
         return self._static
 
 

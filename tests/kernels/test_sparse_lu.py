@@ -90,3 +90,18 @@ def test_linear_solver_falls_back_to_pivoting() -> None:
             solver.factorize(M)
             assert np.allclose(M @ solver.solve(rhs), rhs, rtol=0, atol=1e-9)
         assert isinstance(solver.lu, StaticPatternLU) == static
+
+
+def test_linear_solver_takes_unsymmetric_patterns_with_superlu() -> None:
+    """A pattern the fixed-pattern LU refuses (one entry without its transposed partner) is
+    solved by SuperLU every time it comes."""
+    A = net_like(13, 5).tolil()
+    A[0, A.shape[0] - 1] = 1e-3                     # no entry at (n - 1, 0)
+    A = A.tocsr()
+    A.sort_indices()
+    rhs = np.ones(A.shape[0])
+    solver = LinearSolver()
+    for _ in range(3):
+        solver.factorize(A)
+        assert not isinstance(solver.lu, StaticPatternLU)
+        assert np.allclose(A @ solver.solve(rhs), rhs, rtol=0, atol=1e-9)
