@@ -25,8 +25,8 @@ import numpy as np
 
 from rodnet.config import Scene
 from rodnet.contact.bodies import BodyContact, build_body_contact
-from rodnet.contact.forces import (bodies_in_reach, contact_state, nodal_force, nodal_tangents,
-                                   step_travel)
+from rodnet.contact.forces import (add_friction_work, nodal_force, nodal_tangents, penalty_energy,
+                                   pressed_nodes, step_travel)
 from rodnet.contact.geometry import FloatArray
 from rodnet.formulations.cosserat import CosseratModel, RodConfiguration
 from rodnet.integrate.frames import StepStats
@@ -81,18 +81,12 @@ class CosseratContactModel(CosseratModel):
     def energy(self, q: RodConfiguration, v: FloatArray, t: float = 0.0) -> dict[str, float]:
         """The rod's kinetic and elastic energy [J] and ``contact``, the energy stored in the
         penalty springs (N4)."""
-        from rodnet.contact.lumped import _penalty_energy
-
         out = super().energy(q, v, t)
-        x = np.asarray(q.x)
-        near = bodies_in_reach(self.contact, x)
-        out["contact"] = sum(_penalty_energy(self.contact, b, x) for b in np.flatnonzero(near))
+        out["contact"] = penalty_energy(self.contact, np.asarray(q.x))
         return out
 
     def active_set(self, q: RodConfiguration, v: FloatArray) -> int:
-        x, u = self._node_state(q, v)
-        pressed = np.any(nodal_force(self.contact, x, u) != 0.0, axis=1)
-        return hash((super().active_set(q, v), np.packbits(pressed).tobytes()))
+        return hash((super().active_set(q, v), pressed_nodes(self.contact, *self._node_state(q, v))))
 
     def step_travel(self, q_old: RodConfiguration, q_new: RodConfiguration) -> float:
         """Travel of the points near a body over a step as a multiple of the travel limit (E3)."""
@@ -101,8 +95,7 @@ class CosseratContactModel(CosseratModel):
     def after_step(self, q: RodConfiguration, v: FloatArray, dt: float, stats: StepStats) -> None:
         """Add the friction work of an accepted step ending in ``q``, ``v`` to
         ``stats.extra["friction_work"]`` [J] (friction power at the end of the step times dt)."""
-        power = contact_state(self.contact, *self._node_state(q, v)).friction_power
-        stats.extra["friction_work"] = stats.extra.get("friction_work", 0.0) + dt * power
+        add_friction_work(self.contact, *self._node_state(q, v), dt, stats)
 
 
 def cosserat_with_bodies(model: CosseratModel, scene: Scene,

@@ -22,7 +22,8 @@ from rodnet.contact.broadphase import (ContactPoints, body_point_velocity, body_
                                        contact_points, distribute_force, segment_blocks,
                                        shape_functions)
 from rodnet.contact.geometry import FloatArray, SurfaceQuery
-from rodnet.contact.laws import PointForces, contact_force
+from rodnet.contact.laws import PointForces, contact_force, normal_energy
+from rodnet.integrate.frames import StepStats
 
 
 class BodyPoints(NamedTuple):
@@ -198,3 +199,30 @@ def step_travel(contact: BodyContact, x_old: FloatArray, x_new: FloatArray) -> f
             worst = max(worst, float(seg_move[near].max()) / float(contact.travel_limit[k]))
     return worst
 
+
+
+def penalty_energy(contact: BodyContact, x: FloatArray) -> float:
+    """Energy stored in the penalty springs of every body within reach (N4) [J]; x (N, 3)."""
+    energy = 0.0
+    for b in np.flatnonzero(bodies_in_reach(contact, x)):
+        points = contact_points(x[contact.segments], contact.radius, contact.motion.position[b],
+                                contact.motion.rotation[b], contact.shapes[b].bounds,
+                                contact.law.smoothing, contact.points_per_segment,
+                                contact.segments)
+        if len(points.segment):
+            delta = contact.radius[points.segment] - contact.shapes[b].query(points.local).distance
+            energy += float(normal_energy(delta, contact.law.stiffness, contact.law.smoothing).sum())
+    return energy
+
+
+def pressed_nodes(contact: BodyContact, x: FloatArray, v: FloatArray) -> bytes:
+    """Which nodes a body pushes on, packed: the contact part of a model's active set."""
+    return np.packbits(np.any(nodal_force(contact, x, v) != 0.0, axis=1)).tobytes()
+
+
+def add_friction_work(contact: BodyContact, x: FloatArray, v: FloatArray, dt: float,
+                      stats: StepStats) -> None:
+    """Add the friction work of an accepted step of ``dt`` ending at ``x``, ``v`` (N, 3) to
+    ``stats.extra["friction_work"]`` [J] (friction power at the end of the step times dt)."""
+    power = contact_state(contact, x, v).friction_power
+    stats.extra["friction_work"] = stats.extra.get("friction_work", 0.0) + dt * power

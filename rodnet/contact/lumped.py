@@ -20,8 +20,8 @@ import numpy as np
 
 from rodnet.config import Scene
 from rodnet.contact.bodies import BodyContact, build_body_contact
-from rodnet.contact.forces import bodies_in_reach, contact_state, nodal_force, nodal_tangents, step_travel
-from rodnet.contact.laws import normal_energy
+from rodnet.contact.forces import (add_friction_work, nodal_force, nodal_tangents, penalty_energy,
+                                   pressed_nodes, step_travel)
 from rodnet.contact.rigid_body import kinetic_energy
 from rodnet.integrate.frames import StepStats
 from rodnet.reference.lumped import FloatArray, LumpedModel
@@ -49,9 +49,7 @@ class LumpedContactModel(LumpedModel):
             out["kinetic"] += kinetic_energy(c.mass, c.inertia, c.motion, c.free)
             out["potential"] -= float(np.sum(c.mass[c.free] * (c.motion.position[c.free]
                                                                 @ c.gravity)))
-        x = np.asarray(x)
-        near = bodies_in_reach(self.contact, x)
-        out["contact"] = sum(_penalty_energy(self.contact, b, x) for b in np.flatnonzero(near))
+        out["contact"] = penalty_energy(self.contact, np.asarray(x))
         return out
 
     def generalized_force(self, x: FloatArray, v: FloatArray, t: float,
@@ -84,8 +82,7 @@ class LumpedContactModel(LumpedModel):
         return super().stable_step()
 
     def active_set(self, x: FloatArray, v: FloatArray) -> int:
-        pressed = nodal_force(self.contact, x, v.reshape(-1, 3))
-        return hash((super().active_set(x, v), np.packbits(np.any(pressed != 0.0, axis=1)).tobytes()))
+        return hash((super().active_set(x, v), pressed_nodes(self.contact, x, v.reshape(-1, 3))))
 
     def step_travel(self, x_old: FloatArray, x_new: FloatArray) -> float:
         """Travel of the points near a body over a step as a multiple of the travel limit."""
@@ -94,21 +91,7 @@ class LumpedContactModel(LumpedModel):
     def after_step(self, x: FloatArray, v: FloatArray, dt: float, stats: StepStats) -> None:
         """Add the friction work of an accepted step ending in ``x``, ``v`` to
         ``stats.extra["friction_work"]`` [J] (friction power at the end of the step times dt)."""
-        power = contact_state(self.contact, np.asarray(x), np.asarray(v).reshape(-1, 3)).friction_power
-        stats.extra["friction_work"] = stats.extra.get("friction_work", 0.0) + dt * power
-
-
-def _penalty_energy(contact: BodyContact, b: int, x: FloatArray) -> float:
-    """Energy stored in the penalty springs of body ``b`` (N4) [J]."""
-    from rodnet.contact.broadphase import contact_points
-
-    points = contact_points(x[contact.segments], contact.radius, contact.motion.position[b],
-                            contact.motion.rotation[b], contact.shapes[b].bounds, contact.law.smoothing,
-                            contact.points_per_segment, contact.segments)
-    if not len(points.segment):
-        return 0.0
-    delta = contact.radius[points.segment] - contact.shapes[b].query(points.local).distance
-    return float(normal_energy(delta, contact.law.stiffness, contact.law.smoothing).sum())
+        add_friction_work(self.contact, np.asarray(x), np.asarray(v).reshape(-1, 3), dt, stats)
 
 
 def with_bodies(model: LumpedModel, scene: Scene) -> LumpedContactModel:
