@@ -79,8 +79,16 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
         "depend on it; more steps can cost fewer Newton iterations on strongly nonlinear problems."),
     "simulation.explicit_safety": (
         "-", "Explicit integrator with `adaptive = true`: the step is this fraction of the "
-        "stability limit (S10), in (0, 1]. The limit is an estimate, not a bound; see "
-        "[the lumped model](lumped_model.md#time-step)."),
+        "stability limit (S10) (Cosserat rods: C48), in (0, 1]. The limit is an estimate, not a "
+        "bound; see [the lumped model](lumped_model.md#time-step). With Cosserat rods and "
+        "`rotary_inertia_scaling`, the rotations also run at this fraction of their limit."),
+    "simulation.rotary_inertia_scaling": (
+        "", "Explicit integrator with Cosserat rods: `true` raises the rotary inertia of rotation "
+        "nodes just enough that their rotations ring no faster than the translations the step "
+        "resolves anyway (FORMULATION.md C49); the raise shrinks with the square of the step, so "
+        "refined runs converge to the unscaled rods. `false`: the true rotary inertia, whose shear "
+        "mode limits the step to about 1e-7 s for a 1 mm thread. The largest factor is reported as "
+        "`integrator.rotary_inertia_scale` in summary.json. Not used by other integrators or models."),
     "simulation.rtol": (
         "-", "In (0, 1). `rk45`: relative tolerance; the absolute tolerance is `rtol` x 1e-3 "
         "(metres for positions, m/s for velocities). Implicit integrators and static runs: "

@@ -65,6 +65,7 @@ class SimulationSpec:
     gravity: Vec3 = (0.0, 0.0, 0.0)
     load_steps: int = 10
     explicit_safety: float = 0.5
+    rotary_inertia_scaling: bool = True
     rtol: float = 1.0e-6
     reuse_factorization: bool = False
     dt_max: float | None = None

@@ -32,7 +32,7 @@ from rodnet.reference.lumped import build_lumped
 from rodnet.topology import Structure, build_structure
 
 IMPLICIT = ("generalized-alpha", "backward-euler", "midpoint")
-LUMPED_ONLY = ("explicit", "rk45")
+LUMPED_ONLY = ("rk45",)
 
 
 @dataclass(frozen=True)
@@ -48,6 +48,7 @@ class Prepared:
     mass: NDArray[np.float64]   # (N,) translational node masses [kg]
     structure: Structure
     near_dt: float | None = None  # explicit with bodies: the step while a body is within reach
+    rod_plan: Any = None  # explicit Cosserat rods: the ExplicitRodPlan (step, rotary inertia)
 
 
 def prepare(scene: Scene) -> Prepared:
@@ -64,8 +65,19 @@ def prepare(scene: Scene) -> Prepared:
             model = cosserat_with_bodies(model, scene, structure)
         if integrator in LUMPED_ONLY and sim.type == "dynamic":
             raise SceneError("simulation.integrator", integrator, "Cosserat rods need an implicit "
-                             f"integrator: one of {list(IMPLICIT)}")
+                             f"integrator ({', '.join(IMPLICIT)}) or 'explicit'")
         mass = model.node_mass
+        if integrator == "explicit" and sim.type == "dynamic":
+            if scene.bodies:
+                raise SceneError("simulation.integrator", integrator, "Cosserat rods with [[bodies]] "
+                                 f"need an implicit integrator ({', '.join(IMPLICIT)}); the explicit "
+                                 "one has contact for the lumped model and cables")
+            from rodnet.integrate.explicit_rods import explicit_plan
+
+            plan = explicit_plan(model, sim.dt, sim.adaptive, sim.explicit_safety,
+                                 sim.rotary_inertia_scaling)
+            return _prepared_times(scene, plan.model(model), q0, plan.initial_velocities(model, v0),
+                                   plan.dt, mass, structure, rod_plan=plan)
     else:  # lumped reference, or Cosserat threads without bending and torsion (cables)
         model = build_lumped(scene, structure)
         q0, mass = structure.positions.copy(), model.mass
@@ -89,10 +101,17 @@ def prepare(scene: Scene) -> Prepared:
             near_dt = sim.explicit_safety * near if sim.adaptive else min(dt, near)
     if sim.type == "static":
         _check_supported(model, q0, [s.node for s in scene.supports])
-        times = np.arange(1, sim.load_steps + 1) / sim.load_steps
+    return _prepared_times(scene, model, q0, v0, dt, mass, structure, near_dt=near_dt)
+
+
+def _prepared_times(scene: Scene, model: Any, q0: Any, v0: NDArray[np.float64], dt: float,
+                    mass: NDArray[np.float64], structure: Structure, **extra: Any) -> Prepared:
+    """:class:`Prepared` with the output times: load levels of a static run, frames else."""
+    if scene.simulation.type == "static":
+        times = np.arange(1, scene.simulation.load_steps + 1) / scene.simulation.load_steps
     else:
-        times = frame_times(sim.duration, scene.output.frame_interval)
-    return Prepared(scene, model, q0, v0, times, dt, mass, structure, near_dt)
+        times = frame_times(scene.simulation.duration, scene.output.frame_interval)
+    return Prepared(scene, model, q0, v0, times, dt, mass, structure, **extra)
 
 
 def _check_supported(model: Any, q0: Any, supports: list[str]) -> None:
@@ -248,6 +267,11 @@ def _integrate(p: Prepared, recorder: Recorder, bar: Progress, stats: StepStats)
         from rodnet.integrate.rk45 import integrate_rk45
 
         return integrate_rk45(p.model, p.q0, p.v0, p.times, sim.rtol, recorder, bar, stats=stats)
+    if p.rod_plan is not None:
+        from rodnet.integrate.explicit_rods import integrate_explicit_rods
+
+        return integrate_explicit_rods(p.model, p.q0, p.v0, p.times, p.rod_plan, recorder, bar,
+                                       stats=stats)
     if p.scene.integrator == "explicit":
         from rodnet.integrate.explicit import integrate_explicit
 
@@ -256,6 +280,13 @@ def _integrate(p: Prepared, recorder: Recorder, bar: Progress, stats: StepStats)
     stepper = Stepper(p.model, p.scene.integrator, sim.rho_inf, options)
     return integrate_implicit(stepper, p.q0, p.v0, p.times, p.dt, sim.adaptive, recorder, bar,
                               dt_max=sim.dt_max, error_tolerance=sim.error_tolerance, stats=stats)
+
+
+def _stable_step(p: Prepared) -> float | None:
+    """The explicit stability limit [s]: (S10) of lumped models and cables, (C48) of explicit rods."""
+    if p.rod_plan is not None:
+        return p.rod_plan.stable_step
+    return p.model.stable_step() if hasattr(p.model, "stable_step") else None
 
 
 def _summary(p: Prepared, arrays: dict[str, NDArray[Any]], stats: StepStats, status: str,
@@ -279,7 +310,9 @@ def _summary(p: Prepared, arrays: dict[str, NDArray[Any]], stats: StepStats, sta
         "integrator": {"name": p.scene.integrator, "dt": p.dt if p.scene.integrator == "explicit" else None,
                        "dt_near_bodies": p.near_dt,
                        "dt_min": stats.dt_min if stats.steps else None, "dt_max": stats.dt_max or None,
-                       "stable_step": p.model.stable_step() if hasattr(p.model, "stable_step") else None},
+                       "stable_step": _stable_step(p),
+                       "rotary_inertia_scale": p.rod_plan.scale if p.rod_plan is not None else None,
+                       "max_element_rotation": stats.max_element_rotation},
         "model": {"type": p.scene.model.type, "nodes": structure.n_nodes,
                   "elements": len(structure.segments), "dofs": p.model.n_dof},
         "nodes": structure.selectors, "metrics": metrics, "scene": scene_as_dict(p.scene),

@@ -105,7 +105,8 @@ def test_help_imports_neither_pyvista_nor_trimesh() -> None:
     assert done.returncode == 0, done.stderr
 
 
-def test_cosserat_net_needs_an_implicit_integrator() -> None:
+def test_cosserat_net_refuses_rk45() -> None:
     with pytest.raises(SceneError) as info:
-        prepare(scene_from_toml(small_net_toml(), ["model.type=cosserat"]))
+        prepare(scene_from_toml(small_net_toml(integrator="rk45"), ["model.type=cosserat"]))
     assert info.value.key == "simulation.integrator" and "generalized-alpha" in str(info.value)
+    assert "explicit" in str(info.value)

@@ -21,6 +21,8 @@ class StepStats:
     max_tension: float = 0.0
     dt_min: float = float("inf")
     dt_max: float = 0.0
+    max_element_rotation: float | None = None
+    """Largest element relative rotation |psi| [rad] over every step (explicit rods only)."""
     extra: dict[str, float] = field(default_factory=dict)
 
     def record_step(self, dt: float, count: int = 1) -> None:

@@ -19,6 +19,8 @@ arrays, which it freezes at compile time.
 
 from __future__ import annotations
 
+import math
+
 import numba
 import numpy as np
 from numpy.typing import ArrayLike
@@ -345,18 +347,20 @@ def _resultants(stiffness, tau, e, eps, rate, tension_only, kink):  # pragma: no
     return (N0, N1, N2, M0, M1, M2), D0, V0
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, parallel=True)
 def _state_and_force(rest_length, reference_strain, stiffness, tau, x, q, velocity, tension_only,
                      kink, series, beta_angle, gamma_angle, force, psi_out, R_out, g_out,
-                     coefficients, constitutive, velocity9):  # pragma: no cover - compiled
+                     coefficients, constitutive, velocity9, monitor_out):  # pragma: no cover - compiled
     """Internal force ``S [R_m N, P2 h - A M, P2^T h + A^T M]``, ``h = N x g``, per element.
 
     When ``psi_out`` has ``n`` rows, also stores what :func:`_tangents_kernel` takes: ``psi``,
     ``R_m``, ``g``, ``[beta, beta'/phi, gamma, gamma'/phi]``, ``[stress, modulus,
-    viscous_modulus]`` and ``[v2 - v1, W1, W2]``.
+    viscous_modulus]`` and ``[v2 - v1, W1, W2]``; when ``monitor_out`` has ``n`` rows, the axial
+    force ``N_0`` [N] and the relative rotation angle ``|psi|`` [rad] of every element.
     """
     store = psi_out.shape[0] > 0
-    for e in range(rest_length.shape[0]):
+    store_monitor = monitor_out.shape[0] > 0
+    for e in numba.prange(rest_length.shape[0]):  # elements are independent: split over threads
         ((p0, p1, p2), R, (g0, g1, g2), phi, beta, gamma, eps, rate,
          ((vd0, vd1, vd2), (a0, a1, a2), (b0, b1, b2))) = _strains_and_rates(
             rest_length, reference_strain, x, q, velocity, e, series, beta_angle, gamma_angle)
@@ -382,6 +386,8 @@ def _state_and_force(rest_length, reference_strain, stiffness, tau, x, q, veloci
         force[e, 9] = 0.5 * h0 - beta * ph0 + (AM0 - pm0)
         force[e, 10] = 0.5 * h1 - beta * ph1 + (AM1 - pm1)
         force[e, 11] = 0.5 * h2 - beta * ph2 + (AM2 - pm2)
+        if store_monitor:
+            monitor_out[e, 0], monitor_out[e, 1] = N0, phi
         if store:
             psi_out[e, 0], psi_out[e, 1], psi_out[e, 2] = p0, p1, p2
             for k in range(9):
@@ -412,7 +418,7 @@ def _internal_force_kernel(rest_length, reference_strain, stiffness, tau, x, q, 
     none1, none2, none3 = np.empty((0, 3)), np.empty((0, 3, 3)), np.empty((0, 4))
     _state_and_force(rest_length, reference_strain, stiffness, tau, x, q, velocity, tension_only,
                      kink, series, beta_angle, gamma_angle, force, none1, none2, none1, none3,
-                     np.empty((0, 18)), np.empty((0, 9)))
+                     np.empty((0, 18)), np.empty((0, 9)), np.empty((0, 2)))
     return force
 
 
@@ -426,7 +432,7 @@ def _internal_force_and_tangents_kernel(rest_length, reference_strain, stiffness
     coefficients, constitutive, velocity9 = np.empty((n, 4)), np.empty((n, 18)), np.empty((n, 9))
     _state_and_force(rest_length, reference_strain, stiffness, tau, x, q, velocity, tension_only,
                      kink, series, beta_angle, gamma_angle, force, psi, R_m, g, coefficients,
-                     constitutive, velocity9)
+                     constitutive, velocity9, np.empty((0, 2)))
     _tangents_kernel(psi, R_m, g, coefficients, constitutive, velocity9, 1.0 / rest_length,
                      stiffness_out, damping_out)
 
@@ -477,6 +483,180 @@ def _stress_resultants_kernel(stiffness, tau, strain, strain_rate, tension_only,
             k_e = stiffness[e, k]
             stress[e, k] = k_e * strain[e, k] + tau[e] * k_e * strain_rate[e, k]
     return stress
+
+
+# ---------------------------------------------------------------------------------------------
+# explicit step loop (FORMULATION.md §9b, (C46)-(C47)); driven by rodnet.integrate.explicit_rods
+
+
+@numba.njit(cache=True, parallel=True)
+def _gather_element_state(x, quat, v, W, pos_nodes, rot_nodes, offset_q, offset_R, xe, qe,
+                          ve):  # pragma: no cover - compiled
+    """Element end positions ``xe`` (E, 2, 3), material quaternions ``qe`` (E, 2, 4) and velocities
+    ``ve`` (E, 12) ``[v_a, W_a, v_b, W_b]`` (angular velocities in the end's material frame) from
+    the node state, as :meth:`rodnet.formulations.cosserat.CosseratModel._element_state`.
+
+    ``offset_q`` (E, 2, 4) and ``offset_R`` (E, 2, 3, 3): the end offsets ``Q`` as quaternions and
+    matrices (``R_end = R_node Q``, ``W_end = Q^T W_node``), or arrays with no rows when there are
+    none.
+    """
+    has_offset = offset_q.shape[0] > 0
+    for e in numba.prange(pos_nodes.shape[0]):
+        for s in range(2):
+            a, r, c = pos_nodes[e, s], rot_nodes[e, s], 6 * s
+            for k in range(3):
+                xe[e, s, k] = x[a, k]
+                ve[e, c + k] = v[a, k]
+            if has_offset:
+                w1, x1, y1, z1 = quat[r, 0], quat[r, 1], quat[r, 2], quat[r, 3]
+                w2, x2, y2, z2 = offset_q[e, s, 0], offset_q[e, s, 1], offset_q[e, s, 2], offset_q[e, s, 3]
+                qe[e, s, 0] = w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2
+                qe[e, s, 1] = w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2
+                qe[e, s, 2] = w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2
+                qe[e, s, 3] = w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2
+                for k in range(3):
+                    ve[e, c + 3 + k] = (offset_R[e, s, 0, k] * W[r, 0] + offset_R[e, s, 1, k] * W[r, 1]
+                                        + offset_R[e, s, 2, k] * W[r, 2])
+            else:
+                for k in range(4):
+                    qe[e, s, k] = quat[r, k]
+                for k in range(3):
+                    ve[e, c + 3 + k] = W[r, k]
+
+
+@numba.njit(cache=True)
+def _nodal_forces(t, quat, pos_nodes, rot_nodes, offset_R, force, weight, load_nodes, load_rot,
+                  load_force, load_moment, load_ramp, f_node, m_node):  # pragma: no cover - compiled
+    """Applied minus internal force on every node: ``f_node`` (N, 3) [N], global, and
+    ``m_node`` (R, 3) [N m], body frame (the right-hand side of (C37) without the gyroscopic
+    term). ``force`` (E, 12) holds the element forces in the element ends' frames."""
+    has_offset = offset_R.shape[0] > 0
+    for i in range(f_node.shape[0]):
+        for k in range(3):
+            f_node[i, k] = weight[i, k]
+    m_node[:, :] = 0.0
+    for j in range(load_nodes.shape[0]):
+        scale = 1.0 if load_ramp[j] <= 0.0 else min(1.0, t / load_ramp[j])
+        a, r = load_nodes[j], load_rot[j]
+        w, u, v, z = quat[r, 0], quat[r, 1], quat[r, 2], quat[r, 3]
+        R = (1.0 - 2.0 * (v * v + z * z), 2.0 * (u * v - w * z), 2.0 * (u * z + w * v),
+             2.0 * (u * v + w * z), 1.0 - 2.0 * (u * u + z * z), 2.0 * (v * z - w * u),
+             2.0 * (u * z - w * v), 2.0 * (v * z + w * u), 1.0 - 2.0 * (u * u + v * v))
+        m0, m1, m2 = load_moment[j, 0], load_moment[j, 1], load_moment[j, 2]
+        for k in range(3):  # a global-axis moment in the body frame: R^T m
+            f_node[a, k] += scale * load_force[j, k]
+            m_node[r, k] += scale * (R[k] * m0 + R[3 + k] * m1 + R[6 + k] * m2)
+    for e in range(pos_nodes.shape[0]):
+        for s in range(2):
+            a, r, c = pos_nodes[e, s], rot_nodes[e, s], 6 * s
+            for k in range(3):
+                f_node[a, k] -= force[e, c + k]
+            if has_offset:  # back to the rotation node's frame: Q m_end
+                for k in range(3):
+                    m_node[r, k] -= (offset_R[e, s, k, 0] * force[e, c + 3]
+                                     + offset_R[e, s, k, 1] * force[e, c + 4]
+                                     + offset_R[e, s, k, 2] * force[e, c + 5])
+            else:
+                for k in range(3):
+                    m_node[r, k] -= force[e, c + 3 + k]
+
+
+@numba.njit(cache=True, parallel=True)
+def _update_explicit(x, quat, v, W, f_node, m_node, inv_mass, inertia, inv_inertia,
+                     h):  # pragma: no cover - compiled
+    """One symplectic Euler update (C46), (C47) in place; False when the state became
+    non-finite. ``inv_mass`` (N, 3) and ``inv_inertia`` (R, 3) are 0 on supported DOFs."""
+    bad = 0
+    for i in numba.prange(x.shape[0]):
+        for k in range(3):
+            v[i, k] += h * f_node[i, k] * inv_mass[i, k]
+            x[i, k] += h * v[i, k]
+        if not (math.isfinite(x[i, 0]) and math.isfinite(x[i, 1]) and math.isfinite(x[i, 2])):
+            bad += 1
+    for r in numba.prange(W.shape[0]):
+        w0, w1, w2 = W[r, 0], W[r, 1], W[r, 2]
+        j0, j1, j2 = inertia[r, 0] * w0, inertia[r, 1] * w1, inertia[r, 2] * w2
+        W[r, 0] = w0 + h * (m_node[r, 0] - (w1 * j2 - w2 * j1)) * inv_inertia[r, 0]
+        W[r, 1] = w1 + h * (m_node[r, 1] - (w2 * j0 - w0 * j2)) * inv_inertia[r, 1]
+        W[r, 2] = w2 + h * (m_node[r, 2] - (w0 * j1 - w1 * j0)) * inv_inertia[r, 2]
+        # q <- q o exp(h W) (so3_compiled.retract); below 0.05 rad the Taylor series of
+        # cos(a/2) and sin(a/2)/a to a^8, whose remainder is below 1e-17
+        d0, d1, d2 = h * W[r, 0], h * W[r, 1], h * W[r, 2]
+        a2 = d0 * d0 + d1 * d1 + d2 * d2
+        if a2 < 2.5e-3:
+            c = 1.0 + a2 * (-1.0 / 8.0 + a2 * (1.0 / 384.0 + a2 * (-1.0 / 46080.0 + a2 / 10321920.0)))
+            sn = 0.5 + a2 * (-1.0 / 48.0 + a2 * (1.0 / 3840.0 + a2 * (-1.0 / 645120.0 + a2 / 185794560.0)))
+        else:
+            angle = math.sqrt(a2)
+            c = math.cos(0.5 * angle)
+            sn = math.sin(0.5 * angle) / angle
+        bw, bx, by, bz = c, sn * d0, sn * d1, sn * d2
+        aw, ax, ay, az = quat[r, 0], quat[r, 1], quat[r, 2], quat[r, 3]
+        qw = aw * bw - ax * bx - ay * by - az * bz
+        qx = aw * bx + ax * bw + ay * bz - az * by
+        qy = aw * by - ax * bz + ay * bw + az * bx
+        qz = aw * bz + ax * by - ay * bx + az * bw
+        norm = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
+        if math.isfinite(norm) and norm > 0.0:
+            quat[r, 0], quat[r, 1], quat[r, 2], quat[r, 3] = qw / norm, qx / norm, qy / norm, qz / norm
+        else:
+            bad += 1
+    return bad == 0
+
+
+@numba.njit(cache=True)
+def _advance_explicit(x, quat, v, W, t0, t_end, h0, pos_nodes, rot_nodes, offset_q, offset_R,
+                      rest_length, reference_strain, stiffness, tau, tension_only, kink, series,
+                      beta_angle, gamma_angle, angles, step_factor, inv_mass, inertia,
+                      inv_inertia, weight, load_nodes, load_rot, load_force, load_moment, load_ramp,
+                      xe, qe, ve, force, monitor, f_node, m_node):  # pragma: no cover - compiled
+    """Advance positions ``x`` (N, 3), quaternions ``quat`` (R, 4), velocities ``v`` (N, 3) and
+    body-frame angular velocities ``W`` (R, 3) in place by (C46), (C47) from ``t0`` to ``t_end``
+    [s], landing on ``t_end``.
+
+    Each step is ``h0`` [s] times ``step_factor`` interpolated at the largest element relative
+    rotation ``|psi|`` (``angles`` ascending, C50). ``xe`` ... ``m_node`` are scratch arrays.
+
+    Returns
+    -------
+    status : int
+        0 done, 1 the state became non-finite.
+    t : float
+        The time reached [s].
+    steps : int
+    h_min : float
+        The shortest step taken [s] (the last one, cut to land on ``t_end``, excepted).
+    peak, phi_max : float
+        The largest axial force [N] and element rotation [rad] met on the way.
+    """
+    none3, none33, none4 = np.empty((0, 3)), np.empty((0, 3, 3)), np.empty((0, 4))
+    none18, none9 = np.empty((0, 18)), np.empty((0, 9))
+    peak, phi_max, h_min = 0.0, 0.0, h0
+    t, steps = t0, 0
+    while t < t_end:
+        _gather_element_state(x, quat, v, W, pos_nodes, rot_nodes, offset_q, offset_R, xe, qe, ve)
+        _state_and_force(rest_length, reference_strain, stiffness, tau, xe, qe, ve, tension_only,
+                         kink, series, beta_angle, gamma_angle, force, none3, none33, none3,
+                         none4, none18, none9, monitor)
+        phi = 0.0
+        for e in range(monitor.shape[0]):
+            peak = max(peak, monitor[e, 0])
+            phi = max(phi, monitor[e, 1])
+        phi_max = max(phi_max, phi)
+        h = h0 * np.interp(phi, angles, step_factor)
+        h_min = min(h_min, h)
+        remaining = t_end - t
+        last = h >= remaining * (1.0 - 1e-9)
+        if last:
+            h = remaining
+        _nodal_forces(t, quat, pos_nodes, rot_nodes, offset_R, force, weight, load_nodes,
+                      load_rot, load_force, load_moment, load_ramp, f_node, m_node)
+        finite = _update_explicit(x, quat, v, W, f_node, m_node, inv_mass, inertia, inv_inertia, h)
+        steps += 1
+        t = t_end if last else t + h
+        if not finite:
+            return 1, t, steps, h_min, peak, phi_max
+    return 0, t, steps, h_min, peak, phi_max
 
 
 # ---------------------------------------------------------------------------------------------
@@ -657,3 +837,39 @@ def _tangents_kernel(psi, R_m, g, coefficients, constitutive, velocity9, inv_le,
                         r, c = blocks[bi] + i, blocks[bj] + j
                         stiffness_out[e, 3 * bi + i, 3 * bj + j] = sign * K9[r, c]
                         damping_out[e, 3 * bi + i, 3 * bj + j] = sign * C9[r, c]
+
+
+def advance_explicit(x: FloatArray, quat: FloatArray, v: FloatArray, W: FloatArray, t0: float,
+                     t_end: float, h0: float, element: tuple, control: tuple, nodes: tuple,
+                     scratch: tuple) -> tuple[int, float, int, float, float, float]:
+    """Explicit steps (C46)-(C47) from ``t0`` to ``t_end`` [s], in place; returns
+    ``status, t, steps, h_min, peak, phi_max`` as :func:`_advance_explicit`.
+
+    Parameters
+    ----------
+    x (N, 3), quat (R, 4), v (N, 3), W (R, 3) : float
+        Positions [m], unit quaternions, velocities [m/s], body-frame angular velocities [rad/s].
+    h0 : float
+        The step [s] while every element's relative rotation is moderate.
+    element : tuple
+        ``pos_nodes, rot_nodes`` (E, 2) int, ``offset_q`` (E, 2, 4), ``offset_R`` (E, 2, 3, 3)
+        (no rows without end offsets), ``rest_length, reference_strain, stiffness, tau`` as
+        :func:`internal_force`, ``tension_only``, ``kink_strain``.
+    control : tuple
+        ``angles`` (K,) [rad] ascending and ``step_factor`` (K,) (C50); beyond the last angle
+        the last factor.
+    nodes : tuple
+        ``inv_mass`` (N, 3) [1/kg], ``inertia`` and ``inv_inertia`` (R, 3) (inverses 0 on
+        supported DOFs), ``weight`` (N, 3) [N], then the dead loads ``load_nodes, load_rot`` (L,)
+        int, ``load_force, load_moment`` (L, 3), ``load_ramp`` (L,).
+    scratch : tuple
+        ``xe`` (E, 2, 3), ``qe`` (E, 2, 4), ``ve`` (E, 12), ``force`` (E, 12), ``monitor``
+        (E, 2), ``f_node`` (N, 3), ``m_node`` (R, 3).
+    """
+    (pos_nodes, rot_nodes, offset_q, offset_R, rest_length, reference_strain, stiffness, tau,
+     tension_only, kink) = element
+    angles, step_factor = control
+    return _advance_explicit(x, quat, v, W, t0, t_end, h0, pos_nodes, rot_nodes, offset_q,
+                             offset_R, rest_length, reference_strain, stiffness, tau,
+                             bool(tension_only), float(kink), _SERIES, *_SWITCH_ANGLES, angles,
+                             step_factor, *nodes, *scratch)

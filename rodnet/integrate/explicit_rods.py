@@ -1,0 +1,333 @@
+"""Explicit symplectic Euler for Cosserat rods, with selective scaling of the rotary inertia.
+
+Scheme and step rule: ``elements/cosserat/FORMULATION.md`` §9b, (C46)-(C50). The compiled step
+loop is :func:`rodnet.kernels.cosserat_compiled.advance_explicit`.
+
+A thin thread's rotary inertia is tiny (``rho I`` per length, ``I = pi d^4 / 64``), so the shear
+mode that couples a node's rotation to its neighbours' positions rings at about ``sqrt(G / rho) / r``
+(1.6e7 rad/s for a 1 mm Kevlar thread): an explicit step would have to be about 1e-7 s. The
+rotational rows are raised to the inertia at which they ring no faster than the translational
+rows the step must resolve anyway (C49); the scaling vanishes as the step is refined (C50), so
+the refined solutions converge to the unscaled model.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rodnet.errors import SceneError, SimulationFailed
+from rodnet.formulations.cosserat import CosseratModel, RodConfiguration
+from rodnet.integrate.explicit import whole_steps
+from rodnet.integrate.frames import FrameSink, ProgressSink, StepStats
+from rodnet.kernels import so3
+from rodnet.kernels.cosserat_compiled import advance_explicit, internal_force_and_tangents
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class ExplicitRodPlan:
+    """The step of an explicit rod run and the rotary inertia it runs with.
+
+    Attributes
+    ----------
+    dt : float
+        The step [s] (before shrinking to fit whole steps between frames).
+    stable_step : float
+        The stability limit (C48) [s] of the translational rows at the inertia used.
+    inertia : (R, 3) float
+        Body-frame rotary inertia used [kg m^2]: the model's, raised by (C49) when scaled.
+    scale : float
+        The largest factor by which (C49) raised a rotary inertia (1 when unscaled).
+    control : tuple
+        ``angles`` (K,) [rad] and ``step_factor`` (K,): the step at the largest element rotation
+        ``|psi|`` is ``dt`` times the interpolated factor (C50).
+    """
+
+    dt: float
+    stable_step: float
+    inertia: FloatArray
+    scale: float
+    control: tuple[FloatArray, FloatArray]
+
+    def model(self, model: CosseratModel) -> CosseratModel:
+        """``model`` with the rotary inertia the run uses (energies and frames are those of the
+        system actually integrated)."""
+        return dataclasses.replace(model, rotary_inertia=self.inertia)
+
+    def initial_velocities(self, model: CosseratModel, v0: FloatArray) -> FloatArray:
+        """``v0`` (n_dof,) with each rotation node's angular velocity lowered so that its angular
+        momentum ``J W`` is that of ``model``'s (unscaled) inertia (C49): a start spin given to
+        the real, nearly massless rotations does not become a flywheel."""
+        v = np.array(v0, dtype=float)
+        n3 = 3 * model.n_nodes
+        v[n3:] *= (model.rotary_inertia / self.inertia).ravel()
+        return v
+
+
+def stress_free_element_states(model: CosseratModel, angle: float = 0.0) -> tuple[FloatArray, FloatArray]:
+    """Every element alone, at its reference stretch and shear, bent by ``angle`` [rad] about its
+    first bending axis on top of its reference curvature (0: the stress-free state): end
+    positions (E, 2, 3) [m] and material quaternions (E, 2, 4), the first end at the origin with
+    the identity triad (§Kinematics: ``psi = Le K0 + angle e_2``, ``g = Le Gamma0``)."""
+    n = len(model.rest_length)
+    Le = model.rest_length[:, None]
+    psi = Le * model.reference_strain[:, 3:]
+    psi[:, 1] += angle
+    midpoint = so3.quat_to_matrix(so3.quat_from_rotvec(0.5 * psi))
+    x = np.zeros((n, 2, 3))
+    x[:, 1] = np.einsum("eij,ej->ei", midpoint, Le * model.reference_strain[:, :3])
+    q = np.zeros((n, 2, 4))
+    q[:, 0, 0] = 1.0
+    q[:, 1] = so3.quat_from_rotvec(psi)
+    return x, q
+
+
+def element_stiffness(model: CosseratModel, angle: float = 0.0) -> FloatArray:
+    """(E, 12, 12) symmetric part of every element's stiffness at rest in the state of
+    :func:`stress_free_element_states`, axial law linear (a taut thread: the tension-only clamp
+    only removes stiffness)."""
+    x, q = stress_free_element_states(model, angle)
+    _, K, _ = internal_force_and_tangents(model.rest_length, model.reference_strain,
+                                          model.stiffness, model.tau, x, q,
+                                          np.zeros((len(x), 12)), False, model.kink_strain)
+    return 0.5 * (K + K.transpose(0, 2, 1))
+
+
+def damped_limit(omega: FloatArray, tau: FloatArray) -> FloatArray:
+    """Stability limit ``2 (sqrt(1 + zeta^2) - zeta) / omega`` of symplectic Euler for a mode of
+    frequency ``omega`` [rad/s] with Kelvin-Voigt damping ``zeta = tau omega / 2`` (S10), (C48)."""
+    zeta = 0.5 * tau * omega
+    with np.errstate(divide="ignore"):
+        return np.where(omega > 0.0, 2.0 * (np.sqrt(1.0 + zeta**2) - zeta) / omega, np.inf)
+
+
+def frequency_for_step(h: float, tau: FloatArray, safety: float) -> FloatArray:
+    """The frequency [rad/s] whose damped limit (C48) is ``h / safety``: the solution of
+    ``h omega = safety 2 (sqrt(1 + zeta^2) - zeta)``, ``zeta = tau omega / 2`` (C49)."""
+    return 1.0 / (h * np.sqrt(1.0 / (4.0 * safety**2) + tau / (2.0 * h * safety)))
+
+
+ANGLES = np.linspace(0.0, 0.985 * 2.0 * math.pi, 34)
+"""Angles [rad] at which the stiffening of bent elements (C50) is tabulated; beyond the last the
+step keeps the last factor. At 2 pi the element's coefficients are singular (C11); an element
+driven past it continues on the double cover with a reflected rotation vector."""
+
+ROTATION_SAFETY = 0.7
+"""The fraction of their stability limit at which the modes that move rotations may run (C49),
+whatever ``explicit_safety``: a smaller step then also means less added inertia."""
+
+TRANSLATION = np.r_[0:3, 6:9]
+"""Element DOFs of the two end positions (the others are the end rotations)."""
+
+
+class ElementBound:
+    """Irons' element eigenvalue bound (C48) for a rod structure.
+
+    The lumped masses are shared out among the elements at each node (``m_i / n_i``, ``J_i / n_i``
+    with ``n_i`` elements at the node); then the largest eigenvalue of ``M^-1 K`` of the whole
+    structure is at most the largest over elements of the eigenvalue of the element's stiffness
+    against its share of the masses. Supported DOFs are left out.
+    """
+
+    def __init__(self, model: CosseratModel):
+        self.model = model
+        n = model.n_nodes
+        dofs = model.element_dofs
+        count_t = np.bincount(model.pos_nodes.ravel(), minlength=n)
+        count_r = np.bincount(model.rot_nodes.ravel(), minlength=model.n_rot)
+        self.count_r = count_r
+        share_t = model.node_mass[model.pos_nodes] / count_t[model.pos_nodes]          # (E, 2)
+        self.mass_t = np.repeat(share_t, 3, axis=1)                                      # (E, 6)
+        self.free = model.free[dofs]                                                     # (E, 12)
+        self.tau = model.tau
+
+    def inverse_sqrt_mass(self, inertia: FloatArray) -> FloatArray:
+        """(E, 12) ``1 / sqrt`` of each element's share of the masses, 0 on supported DOFs, for
+        the rotary inertia ``inertia`` (R, 3)."""
+        m = self.model
+        share_r = inertia[m.rot_nodes] / self.count_r[m.rot_nodes][:, :, None]          # (E, 2, 3)
+        mass = np.concatenate([self.mass_t[:, :3], share_r[:, 0], self.mass_t[:, 3:], share_r[:, 1]],
+                              axis=1)
+        with np.errstate(divide="ignore"):
+            return np.where(self.free, 1.0 / np.sqrt(mass), 0.0)
+
+    @staticmethod
+    def largest(K: FloatArray, inv_sqrt_mass: FloatArray, dofs: slice | NDArray[np.int64] = slice(None)) -> FloatArray:
+        """(E,) largest eigenvalue [rad^2/s^2] of ``M_e^-1/2 K_e M_e^-1/2`` over ``dofs``."""
+        A = inv_sqrt_mass[:, :, None] * K * inv_sqrt_mass[:, None, :]
+        A = A[:, dofs][:, :, dofs]
+        return np.linalg.eigvalsh(A)[:, -1]
+
+
+def explicit_plan(model: CosseratModel, dt: float, adaptive: bool, safety: float,
+                  scale_rotary_inertia: bool = True) -> ExplicitRodPlan:
+    """The step, the rotary inertia and the step control of an explicit run (C48)-(C50).
+
+    Parameters
+    ----------
+    dt : float
+        The scene's step [s]; used when ``adaptive`` is False.
+    adaptive : bool
+        Take ``safety`` times the stability limit of the translations as the step.
+    safety : float
+        ``simulation.explicit_safety``: the fraction of the stability limit the step may use.
+    scale_rotary_inertia : bool
+        Raise the rotary inertia by (C49); without it the rotations' own limit binds.
+
+    Raises
+    ------
+    SceneError
+        A free node without mass, or a fixed ``dt`` above the stability limit.
+    """
+    free_nodes = model.free[:3 * model.n_nodes].reshape(-1, 3).any(axis=1)
+    free_rot = model.free[3 * model.n_nodes:].reshape(-1, 3).any(axis=1)
+    if np.any(model.node_mass[free_nodes] <= 0.0) or np.any(model.rotary_inertia[free_rot] <= 0.0):
+        raise SceneError("materials.density", 0.0, "the explicit integrator needs mass and rotary "
+                         "inertia at every free node: a positive density (or mass_per_length)")
+    bound = ElementBound(model)
+    K = element_stiffness(model)
+    inertia = model.rotary_inertia.copy()
+    if scale_rotary_inertia:
+        # the step the translations would allow with the rotations held (C48) sets how fast the
+        # modes with rotations may ring: the rotary inertia is raised to that (C49)
+        lam_t = bound.largest(K, bound.inverse_sqrt_mass(inertia), TRANSLATION)
+        h_t = safety * float(damped_limit(np.sqrt(lam_t), bound.tau).min()) if adaptive else dt
+        target = frequency_for_step(h_t, bound.tau, ROTATION_SAFETY) ** 2
+        inertia = _raised_inertia(model, bound, K, target)
+    lam = bound.largest(K, bound.inverse_sqrt_mass(inertia))
+    stable = float(damped_limit(np.sqrt(lam), bound.tau).min())
+    h = safety * stable if adaptive else dt
+    if not adaptive and dt > stable:
+        raise SceneError("simulation.dt", dt, f"exceeds the explicit stability limit {stable:.3g} s "
+                         f"of this scene; use dt <= {stable:.3g} (about half of it for accurate "
+                         "snap loads) or adaptive = true")
+    # bent elements stiffen: the step shrinks with the largest rotation in the structure (C50)
+    inv_sqrt = bound.inverse_sqrt_mass(inertia)
+    ratio = np.array([float(np.max(bound.largest(element_stiffness(model, a), inv_sqrt) / lam))
+                      for a in ANGLES])
+    factor = 1.0 / np.sqrt(np.maximum(1.0, np.maximum.accumulate(ratio)))
+    scale = float((inertia / model.rotary_inertia).max()) if model.n_rot else 1.0
+    return ExplicitRodPlan(h, stable, inertia, scale, (ANGLES.copy(), factor))
+
+
+def _raised_inertia(model: CosseratModel, bound: ElementBound, K: FloatArray,
+                    target: FloatArray) -> FloatArray:
+    """(C49): rotary inertia (R, 3) raised, never below the model's own, until every element's
+    bound is at most ``target`` (E,) [rad^2/s^2].
+
+    Only the bending axes are raised where a rotation node's triad is the element ends' material
+    triad (axis 0 along the thread: torsion rings no faster than stretching and keeps its own
+    inertia); every axis where an end offset turns the node's triad (a rigid knot, whose axes
+    are bending axes of some thread). Per element, the smallest share ``j`` [kg m^2] of the
+    raised axes of both ends is found by bisection on ``log j``, the bound falling as ``j``
+    grows; a rotation node takes ``n_i`` times the largest share its elements need."""
+    own = model.rotary_inertia
+    count = bound.count_r[model.rot_nodes]                       # (E, 2)
+    own_share = own[model.rot_nodes] / count[:, :, None]         # (E, 2, 3)
+    axes = np.ones((model.n_rot, 3))
+    if model.end_offset is None:
+        axes[:, 0] = 0.0
+    else:
+        turned = np.zeros(model.n_rot, bool)
+        np.logical_or.at(turned, model.rot_nodes.ravel(),
+                         np.abs(np.abs(model.end_offset[..., 0]) - 1.0).ravel() > 1e-12)
+        axes[~turned, 0] = 0.0
+    raise_axes = axes[model.rot_nodes]                           # (E, 2, 3)
+
+    def bound_at(j: FloatArray) -> FloatArray:
+        share = np.maximum(own_share, j[:, None, None] * raise_axes)
+        mass = np.concatenate([bound.mass_t[:, :3], share[:, 0], bound.mass_t[:, 3:], share[:, 1]],
+                              axis=1)
+        return bound.largest(K, np.where(bound.free, 1.0 / np.sqrt(mass), 0.0))
+
+    lo = np.log(own_share.min(axis=(1, 2)))
+    hi = lo + np.log(1e16)
+    for _ in range(50):   # to 1e16 ** (2 ** -50): far below a per cent
+        mid = 0.5 * (lo + hi)
+        ok = bound_at(np.exp(mid)) <= target
+        hi, lo = np.where(ok, mid, hi), np.where(ok, lo, mid)
+    raised = np.zeros(model.n_rot)
+    np.maximum.at(raised, model.rot_nodes.ravel(), (np.exp(hi)[:, None] * count).ravel())
+    return np.maximum(own, raised[:, None])
+
+
+def kernel_arrays(model: CosseratModel) -> tuple[tuple, tuple, tuple]:
+    """The ``element``, ``nodes`` and ``scratch`` arguments of
+    :func:`rodnet.kernels.cosserat_compiled.advance_explicit` for ``model``."""
+    f = np.ascontiguousarray
+    n_el = len(model.rest_length)
+    if model.end_offset is None:
+        offset_q, offset_R = np.zeros((0, 2, 4)), np.zeros((0, 2, 3, 3))
+    else:
+        offset_q = f(model.end_offset, dtype=float)
+        offset_R = f(so3.quat_to_matrix(offset_q))
+    element = (f(model.pos_nodes, dtype=np.int64), f(model.rot_nodes, dtype=np.int64), offset_q,
+               offset_R, f(model.rest_length, dtype=float), f(model.reference_strain, dtype=float),
+               f(model.stiffness, dtype=float), f(model.tau, dtype=float), model.tension_only,
+               model.kink_strain)
+    free = model.free.reshape(-1, 3)
+    n = model.n_nodes
+    inv_mass = np.where(free[:n], 1.0 / np.maximum(model.node_mass, 1e-300)[:, None], 0.0)
+    inertia = f(model.rotary_inertia, dtype=float)
+    inv_inertia = np.where(free[n:], 1.0 / np.maximum(inertia, 1e-300), 0.0)
+    weight = model.node_mass[:, None] * np.asarray(model.gravity, float)
+    load_rot = model.load_nodes if model.load_rot_nodes is None else model.load_rot_nodes
+    nodes = (f(inv_mass), inertia, f(inv_inertia), f(weight), f(model.load_nodes, dtype=np.int64),
+             f(load_rot, dtype=np.int64), f(model.load_force, dtype=float).reshape(-1, 3),
+             f(model.load_moment, dtype=float).reshape(-1, 3), f(model.load_ramp, dtype=float))
+    scratch = (np.empty((n_el, 2, 3)), np.empty((n_el, 2, 4)), np.empty((n_el, 12)),
+               np.empty((n_el, 12)), np.empty((n_el, 2)), np.empty((n, 3)),
+               np.empty((model.n_rot, 3)))
+    return element, nodes, scratch
+
+
+def integrate_explicit_rods(model: CosseratModel, q0: RodConfiguration, v0: FloatArray,
+                            times: FloatArray, plan: ExplicitRodPlan, on_frame: FrameSink,
+                            on_progress: ProgressSink | None = None,
+                            stats: StepStats | None = None) -> StepStats:
+    """Step from ``times[0]`` to ``times[-1]`` by (C46)-(C47), handing every frame time's state
+    (a :class:`RodConfiguration` and the velocities (n_dof,)) to ``on_frame``.
+
+    ``model`` carries the rotary inertia to integrate with (:meth:`ExplicitRodPlan.model`).
+    Between two frames the step is ``plan.dt`` [s] shrunk so that a whole number of steps fits,
+    and shortened further while an element is bent or twisted (C50).
+
+    Raises
+    ------
+    SimulationFailed
+        When the state becomes non-finite; every earlier frame has been handed on.
+    """
+    n3 = 3 * model.n_nodes
+    x, quat = np.array(q0.x, dtype=float), np.array(q0.quat, dtype=float)
+    v = np.array(v0[:n3], dtype=float).reshape(-1, 3)
+    W = np.array(v0[n3:], dtype=float).reshape(-1, 3)
+    element, nodes, scratch = kernel_arrays(model)
+    stats = StepStats() if stats is None else stats  # filled in place: kept if the run fails
+
+    def velocities() -> FloatArray:
+        return np.concatenate([v.ravel(), W.ravel()])
+
+    on_frame(float(times[0]), RodConfiguration(x.copy(), quat.copy()), velocities())
+    for t_start, t_end in zip(times[:-1], times[1:]):
+        _, h = whole_steps(t_start, t_end, plan.dt)
+        status, t, steps, h_min, peak, phi = advance_explicit(
+            x, quat, v, W, float(t_start), float(t_end), h, element, plan.control, nodes, scratch)
+        stats.record_step(h_min, steps)
+        stats.function_evaluations += steps
+        stats.max_tension = max(stats.max_tension, peak)
+        stats.max_element_rotation = max(stats.max_element_rotation or 0.0, phi)
+        if status != 0 or not (np.isfinite(v).all() and np.isfinite(W).all()):
+            raise SimulationFailed(
+                f"the explicit solution diverged (non-finite state) at t = {t:.6g} s with "
+                f"dt = {h:.3g} s; the stability limit of this scene is {plan.stable_step:.3g} s; "
+                "reduce simulation.explicit_safety")
+        on_frame(float(t_end), RodConfiguration(x.copy(), quat.copy()), velocities())
+        if on_progress is not None:
+            on_progress(float(t_end), h, stats)
+    return stats
