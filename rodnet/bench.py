@@ -132,6 +132,10 @@ def default_study(quick: bool = False) -> Study:
         for tol in tolerances:
             runs.append(BenchRun(f"cosserat n={n}", f"tol {tol:g}", "bending",
                                  base + ROD + _n(n) + _implicit(tol)))
+        for safety in (0.5, 0.25):  # explicit, scaled rotary inertia (FORMULATION.md C49)
+            runs.append(BenchRun(f"cosserat explicit n={n}", f"safety {safety:g}", "bending",
+                                 base + ROD + _n(n) + ("simulation.integrator=explicit",
+                                                       f"simulation.explicit_safety={safety:g}")))
     finest_n = 2 if quick else 8
     references = {"no bending": BenchRun("lumped rk45", "rtol 1e-8", "", ()).label,
                   "bending": BenchRun(f"cosserat n={finest_n}", f"tol {tolerances[-1]:g}", "", ()).label}
