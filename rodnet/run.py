@@ -150,6 +150,8 @@ class Recorder:
     vtk: VtkSeries | None
     skip_first: bool = False
     energy_guard: bool = False
+    advice: str = "reduce simulation.dt or set simulation.adaptive = true"
+    """What the energy guard's message tells the user to do."""
     """Stop the run when the energy grows: only for scenes with nothing that does work on them
     (no gravity, no loads), whose kinetic plus elastic energy can only fall."""
     time: list[float] = field(default_factory=list)
@@ -181,8 +183,8 @@ class Recorder:
         if now > start * (1.0 + self.ENERGY_GROWTH) and now - start > 1e-9:
             raise SimulationFailed(
                 f"the energy grew from {start:.6g} J to {now:.6g} J by t = {t:.6g} s although "
-                "nothing does work on the structure: the time integration is unstable at this "
-                "step; reduce simulation.dt or set simulation.adaptive = true")
+                f"nothing does work on the structure: the time integration is unstable at this "
+                f"step; {self.advice}")
 
     def arrays(self, structure: Structure) -> dict[str, NDArray[Any]]:
         """``time``, ``kinetic_energy`` and ``elastic_energy`` (F,), ``positions`` and
@@ -228,7 +230,8 @@ def run(scene: Scene, directory: str | Path | None = None, *, progress: bool | N
         if scene.output.vtk else None
     unloaded = not any(scene.simulation.gravity) and not scene.loads
     recorder = Recorder(prepared.model, vtk, skip_first=scene.simulation.type == "static",
-                        energy_guard=unloaded and scene.simulation.type == "dynamic")
+                        energy_guard=unloaded and scene.simulation.type == "dynamic",
+                        advice=_stability_advice(prepared))
     bar = Progress(scene.simulation.duration, enabled=progress)
     status, message, stats = "ok", "", StepStats()
     contact = getattr(prepared.model, "contact", None)
@@ -280,6 +283,16 @@ def _integrate(p: Prepared, recorder: Recorder, bar: Progress, stats: StepStats)
     stepper = Stepper(p.model, p.scene.integrator, sim.rho_inf, options)
     return integrate_implicit(stepper, p.q0, p.v0, p.times, p.dt, sim.adaptive, recorder, bar,
                               dt_max=sim.dt_max, error_tolerance=sim.error_tolerance, stats=stats)
+
+
+def _stability_advice(p: Prepared) -> str:
+    """What to change when a run turns unstable."""
+    if p.scene.integrator != "explicit":
+        return "reduce simulation.dt or set simulation.adaptive = true"
+    if p.rod_plan is not None:
+        return ("reduce simulation.explicit_safety; if integrator.max_element_rotation in "
+                "summary.json is near 2 pi, use more elements_per_thread")
+    return "reduce simulation.explicit_safety (or simulation.dt with adaptive = false)"
 
 
 def _stable_step(p: Prepared) -> float | None:

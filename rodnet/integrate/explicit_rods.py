@@ -325,8 +325,10 @@ def integrate_explicit_rods(model: CosseratModel, q0: RodConfiguration, v0: Floa
         if status != 0 or not (np.isfinite(v).all() and np.isfinite(W).all()):
             raise SimulationFailed(
                 f"the explicit solution diverged (non-finite state) at t = {t:.6g} s with "
-                f"dt = {h:.3g} s; the stability limit of this scene is {plan.stable_step:.3g} s; "
-                "reduce simulation.explicit_safety")
+                f"dt = {h:.3g} s; the stability limit of this scene is {plan.stable_step:.3g} s "
+                f"and the largest element rotation reached {phi:.3g} rad (limit 2 pi); reduce "
+                "simulation.explicit_safety, or use more elements_per_thread if that rotation is "
+                "near 2 pi")
         on_frame(float(t_end), RodConfiguration(x.copy(), quat.copy()), velocities())
         if on_progress is not None:
             on_progress(float(t_end), h, stats)

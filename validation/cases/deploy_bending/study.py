@@ -9,7 +9,9 @@ stiffness but only ``BRAIDED`` of its bending and torsional stiffness (a braid's
 each other in bending; the fraction is a documented assumption, not a measurement).
 
 Writes ``out/<variant>/`` (the runs, not kept in git; a rerun with ``--reuse`` reads them instead
-of running again), ``results.md`` (the table) and the figures ``docs/img/bending_*.png``.
+of running again), ``results.md`` (the table) and the figures ``docs/img/bending_*.png``; with
+``--explicit``, ``out_explicit_n<n>/``, ``results_explicit_n<n>.md`` and
+``docs/img/bending_explicit_n<n>_*.png``.
 The two ``dt_max 1e-4`` variants repeat the rigid-knot runs without the error control (steps of
 at most 0.1 ms, halved only when Newton's method fails). Every variant has a wall-time limit
 (``--limit``); a run that reaches it is interrupted like Ctrl-C and keeps its frames.
@@ -68,8 +70,14 @@ def variants() -> dict[str, tuple[str, ...]]:
     }
 
 
+OUT = HERE / "out"
+"""Where the runs go: ``out/`` (implicit) or ``out_explicit_n<n>/`` (``--explicit``)."""
+PREFIX = "bending_"
+"""File-name prefix of the figures: ``bending_`` or ``bending_explicit_n<n>_``."""
+
+
 def folder_of(name: str) -> Path:
-    return HERE / "out" / name.replace(", ", "_").replace(" ", "_")
+    return OUT / name.replace(", ", "_").replace(" ", "_")
 
 
 def _interrupt(signum: int, frame: object) -> None:
@@ -150,7 +158,7 @@ def figures(results: dict[str, RunResult]) -> None:
                  "threads without bending, with 1 % of the solid EI (braided) and with the solid EI",
                  fontsize=10)
     fig.tight_layout()
-    fig.savefig(IMG / "bending_histories.png", dpi=110)
+    fig.savefig(IMG / f"{PREFIX}histories.png", dpi=110)
     plt.close(fig)
     _shapes(results, plt)
     _tensions(results, plt)
@@ -191,7 +199,7 @@ def _shapes(results: dict[str, RunResult], plt) -> None:
                          f"area {r.arrays['mouth_area'][k]:.0f} m$^2$", fontsize=8)
     fig.suptitle("Net shape (knots, threads, corner masses); shooting direction z", fontsize=10)
     fig.tight_layout()
-    fig.savefig(IMG / "bending_shapes.png", dpi=100)
+    fig.savefig(IMG / f"{PREFIX}shapes.png", dpi=100)
     plt.close(fig)
 
 
@@ -213,7 +221,7 @@ def _tensions(results: dict[str, RunResult], plt) -> None:
         a.grid(alpha=0.3)
     fig.suptitle("Tension histories at the saved frames (every 10 ms)", fontsize=10)
     fig.tight_layout()
-    fig.savefig(IMG / "bending_tension.png", dpi=110)
+    fig.savefig(IMG / f"{PREFIX}tension.png", dpi=110)
     plt.close(fig)
 
 
@@ -289,6 +297,9 @@ def main() -> None:
     parser.add_argument("--reuse", action="store_true", help="read variants already in out/")
     parser.add_argument("--explicit", action="store_true", help="the explicit integrator")
     args = parser.parse_args()
+    global OUT, PREFIX
+    if args.explicit:
+        OUT, PREFIX = HERE / f"out_explicit_n{args.n}", f"bending_explicit_n{args.n}_"
     results, walls = {}, {}
     for name, overrides in variants().items():
         if (args.only and args.only not in name) or (args.explicit and "dt_max" in name):
@@ -307,7 +318,7 @@ def main() -> None:
                 "bending: the lumped model), explicit_safety 0.5" if args.explicit else
                 f"generalized-alpha (rho_inf 0.7) with error_tolerance = {args.tolerance:g} m "
                 "(variants named dt_max: no error control)")
-    (HERE / "results.md").write_text(
+    (HERE / ("results.md" if not args.explicit else f"results_explicit_n{args.n}.md")).write_text(
         f"# Bending study\n\nn = {args.n} element(s) per thread, {stepping}, "
         f"{args.duration:g} s simulated, one BLAS thread; wall time includes building the model; "
         "limit: the wall-time limit the run had (-: none; such runs marked \"time limit\" were "
