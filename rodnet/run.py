@@ -172,6 +172,29 @@ class Recorder:
             self.vtk.write(t, frame)
         if self.energy_guard:
             self._check_energy(t)
+        self._check_inverted(t, frame)
+
+    INVERTED_STRETCH = 1.5
+    """Chord over rest length above which a rod element counts as inverted."""
+
+    def _check_inverted(self, t: float, frame: dict[str, NDArray[np.float64]]) -> None:
+        """Raise :class:`SimulationFailed` when a rod element's chord is longer than
+        ``INVERTED_STRETCH`` times its rest length: its material axis has turned against the
+        chord (FORMULATION.md §10), and with the tension-only law it carries no axial force at
+        any length, so the thread is in effect cut (the frame is kept: it shows the element)."""
+        ends = getattr(self.model, "pos_nodes", None)
+        rest = getattr(self.model, "rest_length", None)
+        if ends is None or rest is None or not hasattr(self.model, "rot_nodes"):
+            return
+        x = frame["positions"]
+        stretch = np.linalg.norm(x[ends[:, 1]] - x[ends[:, 0]], axis=1) / rest
+        e = int(np.argmax(stretch))
+        if stretch[e] > self.INVERTED_STRETCH:
+            raise SimulationFailed(
+                f"rod element {e} (nodes {ends[e, 0]}-{ends[e, 1]}) is {stretch[e]:.3g} times its "
+                f"rest length at t = {t:.6g} s with an axial force of {frame['tension'][e]:.3g} N: "
+                "its material axis has turned against its chord (an inverted element), so it "
+                f"resists no stretching; {self.advice}")
 
     def _check_energy(self, t: float) -> None:
         """Raise :class:`SimulationFailed` when the energy exceeds its start value by more than
@@ -288,7 +311,8 @@ def _integrate(p: Prepared, recorder: Recorder, bar: Progress, stats: StepStats)
 def _stability_advice(p: Prepared) -> str:
     """What to change when a run turns unstable."""
     if p.scene.integrator != "explicit":
-        return "reduce simulation.dt or set simulation.adaptive = true"
+        return ("reduce simulation.dt or set simulation.adaptive = true (with it, a smaller "
+                "error_tolerance or dt_max)")
     if p.rod_plan is not None:
         return ("reduce simulation.explicit_safety; if integrator.max_element_rotation in "
                 "summary.json is near 2 pi, use more elements_per_thread")
