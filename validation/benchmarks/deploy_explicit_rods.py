@@ -52,7 +52,12 @@ def study() -> Study:
     ]
     references = {"no bending": runs[2].label, "bending": runs[4].label}
     notes = ["Explicit rods: symplectic Euler with the rotary inertia scaled (C49), the element "
-             "forces split over the two cores; wall times on the shared 2-core machine.",
+             "forces split over the two cores; wall times on the shared 2-core machine (process "
+             "wall time, with the model build). The pinned n=2 safety 0.5 run and the lumped "
+             "runs were timed with the machine otherwise idle; the other Cosserat runs shared it "
+             "with one or two other heavy runs (1.5 to 3 times slower).",
+             "The rigid-knot run stops at 2.98 s on an inverted element (FORMULATION.md §10), "
+             "when the net has collapsed again; its largest area (1.29 s) is unaffected.",
              "The bending reference is explicit too; its own error is that of the added rotary "
              "inertia and of the step, so the table's errors for the bending family measure "
              "convergence, not the distance to the unscaled rods (see docs/rod_model.md, "
