@@ -33,6 +33,9 @@ from rodnet.topology import Structure, build_structure
 
 IMPLICIT = ("generalized-alpha", "backward-euler", "midpoint")
 LUMPED_ONLY = ("rk45",)
+IMPLICIT_ADVICE = ("reduce simulation.dt or set simulation.adaptive = true (with it, a smaller "
+                   "error_tolerance or dt_max)")
+"""What a run's stability messages advise for the implicit integrators."""
 
 
 @dataclass(frozen=True)
@@ -150,10 +153,10 @@ class Recorder:
     vtk: VtkSeries | None
     skip_first: bool = False
     energy_guard: bool = False
-    advice: str = "reduce simulation.dt or set simulation.adaptive = true"
-    """What the energy guard's message tells the user to do."""
     """Stop the run when the energy grows: only for scenes with nothing that does work on them
     (no gravity, no loads), whose kinetic plus elastic energy can only fall."""
+    advice: str = IMPLICIT_ADVICE
+    """What the messages of the energy and inverted-element checks tell the user to do."""
     time: list[float] = field(default_factory=list)
     frames: list[dict[str, NDArray[np.float64]]] = field(default_factory=list)
 
@@ -311,8 +314,7 @@ def _integrate(p: Prepared, recorder: Recorder, bar: Progress, stats: StepStats)
 def _stability_advice(p: Prepared) -> str:
     """What to change when a run turns unstable."""
     if p.scene.integrator != "explicit":
-        return ("reduce simulation.dt or set simulation.adaptive = true (with it, a smaller "
-                "error_tolerance or dt_max)")
+        return IMPLICIT_ADVICE
     if p.rod_plan is not None:
         return ("reduce simulation.explicit_safety; if integrator.max_element_rotation in "
                 "summary.json is near 2 pi, use more elements_per_thread")
