@@ -12,7 +12,7 @@ import pytest
 
 from rodnet.cli import main
 from rodnet.reference.lumped import LumpedModel
-from rodnet.run import Recorder, run
+from rodnet.run import Recorder, prepare, run
 from rodnet.scene import scene_from_toml
 from tests.conftest import small_net_toml
 
@@ -127,3 +127,43 @@ def test_failed_run_keeps_its_step_counts(tmp_path: Path, monkeypatch) -> None:
     monkeypatch.setattr(LumpedModel, "stable_step", lambda self: 20.0 * real(self))
     r = run(scene_from_toml(small_net_toml(duration=1.0)), tmp_path, progress=False)
     assert r.status == "failed" and r.summary["steps"] > 0
+
+
+def test_explicit_step_ignores_a_segment_between_two_supported_nodes(tmp_path: Path) -> None:
+    """A segment whose two ends are held does not move and sets no stability limit (S10); it
+    used to make the limit 0 and the run crash on an infinite step count."""
+    scene = scene_from_toml("""
+[simulation]
+duration = 0.01
+integrator = "explicit"
+[model]
+type = "lumped"
+axial = "linear"
+[[materials]]
+name = "steel"
+density = 7800.0
+youngs_modulus = 2.0e11
+poisson_ratio = 0.3
+diameter = 0.01
+[[rods]]
+name = "a"
+material = "steel"
+points = [[0, 0, 0], [1, 0, 0], [2, 0, 0]]
+elements = 3
+[[supports]]
+node = "a:0"
+fix = "pin"
+[[supports]]
+node = "a:1"
+fix = "pin"
+[[loads]]
+node = "a:end"
+force = [0.0, 0.0, -1.0]
+[output]
+vtk = false
+""")
+    free_part = prepare(scene).model
+    assert 0.0 < free_part.stable_step() < 1e-3
+    result = run(scene, tmp_path, progress=False)
+    assert result.status == "ok"
+    assert result.arrays["positions"][-1, -1, 2] < 0.0      # the free end moves down

@@ -22,10 +22,11 @@ from numpy.typing import NDArray
 
 from rodnet.errors import SceneError, SimulationFailed
 from rodnet.formulations.cosserat import CosseratModel, RodConfiguration
-from rodnet.integrate.explicit import whole_steps
+from rodnet.integrate.explicit import diverged, whole_steps
 from rodnet.integrate.frames import FrameSink, ProgressSink, StepStats
 from rodnet.kernels import so3
 from rodnet.kernels.cosserat_compiled import advance_explicit, internal_force_and_tangents
+from rodnet.reference.lumped import damped_limit
 
 FloatArray = NDArray[np.float64]
 
@@ -39,7 +40,7 @@ class ExplicitRodPlan:
     dt : float
         The step [s] (before shrinking to fit whole steps between frames).
     stable_step : float
-        The stability limit (C48) [s] of the translational rows at the inertia used.
+        The stability limit (C48) [s] of the whole structure at the inertia used.
     inertia : (R, 3) float
         Body-frame rotary inertia used [kg m^2]: the model's, raised by (C49) when scaled.
     scale : float
@@ -99,14 +100,6 @@ def element_stiffness(model: CosseratModel, angle: float = 0.0) -> FloatArray:
     return 0.5 * (K + K.transpose(0, 2, 1))
 
 
-def damped_limit(omega: FloatArray, tau: FloatArray) -> FloatArray:
-    """Stability limit ``2 (sqrt(1 + zeta^2) - zeta) / omega`` of symplectic Euler for a mode of
-    frequency ``omega`` [rad/s] with Kelvin-Voigt damping ``zeta = tau omega / 2`` (S10), (C48)."""
-    zeta = 0.5 * tau * omega
-    with np.errstate(divide="ignore"):
-        return np.where(omega > 0.0, 2.0 * (np.sqrt(1.0 + zeta**2) - zeta) / omega, np.inf)
-
-
 def frequency_for_step(h: float, tau: FloatArray, safety: float) -> FloatArray:
     """The frequency [rad/s] whose damped limit (C48) is ``h / safety``: the solution of
     ``h omega = safety 2 (sqrt(1 + zeta^2) - zeta)``, ``zeta = tau omega / 2`` (C49)."""
@@ -147,11 +140,18 @@ class ElementBound:
         self.free = model.free[dofs]                                                     # (E, 12)
         self.tau = model.tau
 
+    def rotary_shares(self, inertia: FloatArray) -> FloatArray:
+        """(E, 2, 3) each element's share of its end rotation nodes' inertia (R, 3)."""
+        m = self.model
+        return inertia[m.rot_nodes] / self.count_r[m.rot_nodes][:, :, None]
+
     def inverse_sqrt_mass(self, inertia: FloatArray) -> FloatArray:
         """(E, 12) ``1 / sqrt`` of each element's share of the masses, 0 on supported DOFs, for
         the rotary inertia ``inertia`` (R, 3)."""
-        m = self.model
-        share_r = inertia[m.rot_nodes] / self.count_r[m.rot_nodes][:, :, None]          # (E, 2, 3)
+        return self.inverse_sqrt_of_shares(self.rotary_shares(inertia))
+
+    def inverse_sqrt_of_shares(self, share_r: FloatArray) -> FloatArray:
+        """(E, 12) as :meth:`inverse_sqrt_mass`, from the rotary shares ``share_r`` (E, 2, 3)."""
         mass = np.concatenate([self.mass_t[:, :3], share_r[:, 0], self.mass_t[:, 3:], share_r[:, 1]],
                               axis=1)
         with np.errstate(divide="ignore"):
@@ -174,7 +174,7 @@ def explicit_plan(model: CosseratModel, dt: float, adaptive: bool, safety: float
     dt : float
         The scene's step [s]; used when ``adaptive`` is False.
     adaptive : bool
-        Take ``safety`` times the stability limit of the translations as the step.
+        Take ``safety`` times the stability limit (C48) at the raised inertia as the step.
     safety : float
         ``simulation.explicit_safety``: the fraction of the stability limit the step may use.
     scale_rotary_inertia : bool
@@ -218,33 +218,17 @@ def explicit_plan(model: CosseratModel, dt: float, adaptive: bool, safety: float
 
 def _raised_inertia(model: CosseratModel, bound: ElementBound, K: FloatArray,
                     target: FloatArray) -> FloatArray:
-    """(C49): rotary inertia (R, 3) raised, never below the model's own, until every element's
-    bound is at most ``target`` (E,) [rad^2/s^2].
+    """(C49): rotary inertia (R, 3) raised isotropically, never below the model's own, until
+    every element's bound is at most ``target`` (E,) [rad^2/s^2].
 
-    Only the bending axes are raised where a rotation node's triad is the element ends' material
-    triad (axis 0 along the thread: torsion rings no faster than stretching and keeps its own
-    inertia); every axis where an end offset turns the node's triad (a rigid knot, whose axes
-    are bending axes of some thread). Per element, the smallest share ``j`` [kg m^2] of the
-    raised axes of both ends is found by bisection on ``log j``, the bound falling as ``j``
-    grows; a rotation node takes ``n_i`` times the largest share its elements need."""
-    own = model.rotary_inertia
-    count = bound.count_r[model.rot_nodes]                       # (E, 2)
-    own_share = own[model.rot_nodes] / count[:, :, None]         # (E, 2, 3)
-    axes = np.ones((model.n_rot, 3))
-    if model.end_offset is None:
-        axes[:, 0] = 0.0
-    else:
-        turned = np.zeros(model.n_rot, bool)
-        np.logical_or.at(turned, model.rot_nodes.ravel(),
-                         np.abs(np.abs(model.end_offset[..., 0]) - 1.0).ravel() > 1e-12)
-        axes[~turned, 0] = 0.0
-    raise_axes = axes[model.rot_nodes]                           # (E, 2, 3)
+    Per element, the smallest share ``j`` [kg m^2] of both end rotations (every axis at least its
+    own share) is found by bisection on ``log j``, the bound falling as ``j`` grows; a rotation
+    node takes ``n_i`` times the largest share its elements need. (Raising only the bending axes
+    of thread ends, torsion keeping its own inertia, made bent elements unstable.)"""
+    own_share = bound.rotary_shares(model.rotary_inertia)                 # (E, 2, 3)
 
     def bound_at(j: FloatArray) -> FloatArray:
-        share = np.maximum(own_share, j[:, None, None] * raise_axes)
-        mass = np.concatenate([bound.mass_t[:, :3], share[:, 0], bound.mass_t[:, 3:], share[:, 1]],
-                              axis=1)
-        return bound.largest(K, np.where(bound.free, 1.0 / np.sqrt(mass), 0.0))
+        return bound.largest(K, bound.inverse_sqrt_of_shares(np.maximum(own_share, j[:, None, None])))
 
     lo = np.log(own_share.min(axis=(1, 2)))
     hi = lo + np.log(1e16)
@@ -253,8 +237,9 @@ def _raised_inertia(model: CosseratModel, bound: ElementBound, K: FloatArray,
         ok = bound_at(np.exp(mid)) <= target
         hi, lo = np.where(ok, mid, hi), np.where(ok, lo, mid)
     raised = np.zeros(model.n_rot)
+    count = bound.count_r[model.rot_nodes]                                # (E, 2)
     np.maximum.at(raised, model.rot_nodes.ravel(), (np.exp(hi)[:, None] * count).ravel())
-    return np.maximum(own, raised[:, None])
+    return np.maximum(model.rotary_inertia, raised[:, None])
 
 
 def kernel_arrays(model: CosseratModel) -> tuple[tuple, tuple, tuple]:
@@ -324,11 +309,9 @@ def integrate_explicit_rods(model: CosseratModel, q0: RodConfiguration, v0: Floa
         stats.max_element_rotation = max(stats.max_element_rotation or 0.0, phi)
         if status != 0 or not (np.isfinite(v).all() and np.isfinite(W).all()):
             raise SimulationFailed(
-                f"the explicit solution diverged (non-finite state) at t = {t:.6g} s with "
-                f"dt = {h:.3g} s; the stability limit of this scene is {plan.stable_step:.3g} s "
-                f"and the largest element rotation reached {phi:.3g} rad (limit 2 pi); reduce "
-                "simulation.explicit_safety, or use more elements_per_thread if that rotation is "
-                "near 2 pi")
+                f"{diverged(t, h, plan.stable_step)} and the largest element rotation reached "
+                f"{phi:.3g} rad (limit 2 pi); reduce simulation.explicit_safety, or use more "
+                "elements_per_thread if that rotation is near 2 pi")
         on_frame(float(t_end), RodConfiguration(x.copy(), quat.copy()), velocities())
         if on_progress is not None:
             on_progress(float(t_end), h, stats)

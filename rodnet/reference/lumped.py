@@ -24,6 +24,15 @@ from rodnet.topology import Structure
 FloatArray = NDArray[np.float64]
 
 
+def damped_limit(omega: FloatArray, tau: FloatArray) -> FloatArray:
+    """Stability limit ``2 (sqrt(1 + zeta^2) - zeta) / omega`` [s] of symplectic Euler for modes
+    of frequency ``omega`` [rad/s] with Kelvin-Voigt damping ``zeta = tau omega / 2`` (``tau``:
+    retardation time [s]) (S10); infinite for a mode that does not move (``omega = 0``)."""
+    zeta = 0.5 * tau * omega
+    with np.errstate(divide="ignore"):
+        return np.where(omega > 0.0, 2.0 * (np.sqrt(1.0 + zeta**2) - zeta) / omega, np.inf)
+
+
 @dataclass(frozen=True)
 class LumpedModel:
     """Read-only arrays of the lumped model.
@@ -137,11 +146,8 @@ class LumpedModel:
         """
         a, b = self.segments[:, 0], self.segments[:, 1]
         k = self.EA / self.rest_length
-        c = self.etaA / self.rest_length
         omega = np.sqrt(2.0 * k * (self.inv_mass[a] + self.inv_mass[b]))
-        zeta = c * omega / (2.0 * k)
-        steps = 2.0 / np.where(omega > 0, omega, np.inf) * (np.sqrt(1.0 + zeta**2) - zeta)
-        return float(np.min(steps))
+        return float(np.min(damped_limit(omega, self.etaA / self.EA), initial=np.inf))
 
     # --- the System protocol of rodnet.integrate.system (configuration q = positions (N, 3)) ---
 
