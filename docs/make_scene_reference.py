@@ -60,9 +60,9 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
         '"backward-euler": implicit, first order, strongly dissipative. "midpoint": implicit, '
         "second order, conserves linear and angular momentum, no numerical dissipation. "
         '"explicit": symplectic '
-        'Euler, compiled. "rk45": scipy\'s adaptive Dormand-Prince, the reference. "explicit" and '
-        '"rk45" run the lumped model and cable threads (`model.type = "cosserat"` with `bending` '
-        "and `torsion` both false) only; rods with bending or torsion need an implicit integrator. "
+        'Euler, compiled; with Cosserat rods on a raised rotary inertia (`rotary_inertia_scaling`). '
+        '"rk45": scipy\'s adaptive Dormand-Prince, the reference, for the lumped model and cable '
+        'threads (`model.type = "cosserat"` with `bending` and `torsion` both false) only. '
         "Static runs do not use it. See [the rod model](rod_model.md#integrators)."),
     "simulation.rho_inf": (
         "-", '"generalized-alpha": spectral radius at infinite frequency, in [0, 1]. 1 keeps the '

@@ -342,7 +342,7 @@ def check_start_clear(contact: BodyContact, structure: Structure) -> None:
 
 def check_contact_supported(scene: Scene) -> None:
     """Refuse scenes with bodies that this version cannot run: ``rk45``, and free bodies in
-    static runs or with an implicit integrator (so also with rods that bend or twist).
+    static runs or with an implicit integrator.
 
     Raises
     ------
@@ -363,6 +363,5 @@ def check_contact_supported(scene: Scene) -> None:
                          "fixed; set fixed = true or run it with type = 'dynamic'")
     if scene.integrator != "explicit":
         raise SceneError("simulation.integrator", scene.integrator,
-                         f"{which}: free bodies move with the 'explicit' integrator only "
-                         "(model.type = 'lumped', or cable threads); use integrator = "
-                         "'explicit' or set fixed = true on every body")
+                         f"{which}: free bodies move with the 'explicit' integrator only; "
+                         "use integrator = 'explicit' or set fixed = true on every body")

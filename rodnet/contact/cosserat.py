@@ -12,7 +12,8 @@ contact tangent unchanged, and Newton converges quadratically through contact as
 
 The rotations do not enter the contact: friction acts at the centreline point, and its moment
 ``r n x f_T`` about the thread axis is neglected (FORMULATION section 6). Free bodies are not part
-of the implicit system (FORMULATION section 8): scenes with Cosserat rods need fixed bodies.
+of the implicit system (FORMULATION section 8): they move with the explicit integrator
+(:func:`rodnet.integrate.explicit_rods.integrate_explicit_rods`), implicit runs need fixed bodies.
 Equations: ``elements/contact/FORMULATION.md``; user guide: ``docs/contact.md``.
 """
 
@@ -25,7 +26,7 @@ import numpy as np
 
 from rodnet.config import Scene
 from rodnet.contact.bodies import BodyContact, build_body_contact
-from rodnet.contact.forces import (add_friction_work, nodal_force, nodal_tangents, penalty_energy,
+from rodnet.contact.forces import (add_body_energy, add_friction_work, nodal_force, nodal_tangents,
                                    pressed_nodes, step_travel)
 from rodnet.contact.geometry import FloatArray
 from rodnet.formulations.cosserat import CosseratModel, RodConfiguration
@@ -79,11 +80,9 @@ class CosseratContactModel(CosseratModel):
         return g, K_blocks, C_blocks
 
     def energy(self, q: RodConfiguration, v: FloatArray, t: float = 0.0) -> dict[str, float]:
-        """The rod's kinetic and elastic energy [J] and ``contact``, the energy stored in the
-        penalty springs (N4)."""
-        out = super().energy(q, v, t)
-        out["contact"] = penalty_energy(self.contact, np.asarray(q.x))
-        return out
+        """The rod's kinetic and elastic energy [J] with the free bodies' kinetic energy in
+        ``kinetic``, and ``contact``, the energy stored in the penalty springs (N4)."""
+        return add_body_energy(super().energy(q, v, t), self.contact, np.asarray(q.x))
 
     def active_set(self, q: RodConfiguration, v: FloatArray) -> int:
         return hash((super().active_set(q, v), pressed_nodes(self.contact, *self._node_state(q, v))))

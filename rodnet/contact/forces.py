@@ -23,6 +23,7 @@ from rodnet.contact.broadphase import (ContactPoints, body_point_velocity, body_
                                        shape_functions)
 from rodnet.contact.geometry import FloatArray, SurfaceQuery
 from rodnet.contact.laws import PointForces, contact_force, normal_energy
+from rodnet.contact.rigid_body import kinetic_energy
 from rodnet.integrate.frames import StepStats
 
 
@@ -199,6 +200,21 @@ def step_travel(contact: BodyContact, x_old: FloatArray, x_new: FloatArray) -> f
             worst = max(worst, float(seg_move[near].max()) / float(contact.travel_limit[k]))
     return worst
 
+
+
+def add_body_energy(energy: dict[str, float], contact: BodyContact, x: FloatArray) -> dict[str, float]:
+    """Add to a model's ``energy`` terms [J] those of the bodies: the free bodies' kinetic
+    energy (at ``contact.motion``) to ``kinetic``, their gravity potential to ``potential`` when
+    the model reports one, and ``contact``, the energy stored in the penalty springs (N4) at
+    positions ``x`` (N, 3). Returns ``energy``."""
+    if contact.free.any():
+        energy["kinetic"] += kinetic_energy(contact.mass, contact.inertia, contact.motion,
+                                            contact.free)
+        if "potential" in energy:
+            energy["potential"] -= float(np.sum(contact.mass[contact.free] * (
+                contact.motion.position[contact.free] @ contact.gravity)))
+    energy["contact"] = penalty_energy(contact, x)
+    return energy
 
 
 def penalty_energy(contact: BodyContact, x: FloatArray) -> float:

@@ -20,9 +20,8 @@ import numpy as np
 
 from rodnet.config import Scene
 from rodnet.contact.bodies import BodyContact, build_body_contact
-from rodnet.contact.forces import (add_friction_work, nodal_force, nodal_tangents, penalty_energy,
+from rodnet.contact.forces import (add_body_energy, add_friction_work, nodal_force, nodal_tangents,
                                    pressed_nodes, step_travel)
-from rodnet.contact.rigid_body import kinetic_energy
 from rodnet.integrate.frames import StepStats
 from rodnet.reference.lumped import FloatArray, LumpedModel
 
@@ -43,14 +42,7 @@ class LumpedContactModel(LumpedModel):
         bodies' kinetic energy (at ``contact.motion``) in ``kinetic`` and their gravity
         potential in ``potential``, plus ``contact``: the energy stored in the penalty springs
         (N4)."""
-        out = super().energy(x, v, t)
-        c = self.contact
-        if c.free.any():
-            out["kinetic"] += kinetic_energy(c.mass, c.inertia, c.motion, c.free)
-            out["potential"] -= float(np.sum(c.mass[c.free] * (c.motion.position[c.free]
-                                                                @ c.gravity)))
-        out["contact"] = penalty_energy(self.contact, np.asarray(x))
-        return out
+        return add_body_energy(super().energy(x, v, t), self.contact, np.asarray(x))
 
     def generalized_force(self, x: FloatArray, v: FloatArray, t: float,
                           load_factor: float = 1.0) -> FloatArray:

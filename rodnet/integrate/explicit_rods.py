@@ -25,7 +25,10 @@ from rodnet.formulations.cosserat import CosseratModel, RodConfiguration
 from rodnet.integrate.explicit import diverged, whole_steps
 from rodnet.integrate.frames import FrameSink, ProgressSink, StepStats
 from rodnet.kernels import so3
-from rodnet.kernels.cosserat_compiled import advance_explicit, internal_force_and_tangents
+from rodnet.integrate.explicit_contact import MIN_STEP_FRACTION
+from rodnet.kernels.cosserat_compiled import (SERIES_ARGUMENTS, advance_explicit,
+                                              internal_force_and_tangents)
+from rodnet.kernels.rod_contact_compiled import advance_rods_contact
 from rodnet.reference.lumped import damped_limit
 
 FloatArray = NDArray[np.float64]
@@ -275,18 +278,25 @@ def kernel_arrays(model: CosseratModel) -> tuple[tuple, tuple, tuple]:
 def integrate_explicit_rods(model: CosseratModel, q0: RodConfiguration, v0: FloatArray,
                             times: FloatArray, plan: ExplicitRodPlan, on_frame: FrameSink,
                             on_progress: ProgressSink | None = None,
-                            stats: StepStats | None = None) -> StepStats:
+                            stats: StepStats | None = None,
+                            near_dt: float | None = None) -> StepStats:
     """Step from ``times[0]`` to ``times[-1]`` by (C46)-(C47), handing every frame time's state
     (a :class:`RodConfiguration` and the velocities (n_dof,)) to ``on_frame``.
 
     ``model`` carries the rotary inertia to integrate with (:meth:`ExplicitRodPlan.model`).
     Between two frames the step is ``plan.dt`` [s] shrunk so that a whole number of steps fits,
-    and shortened further while an element is bent or twisted (C50).
+    and shortened further while an element is bent or twisted (C50). A model with rigid bodies
+    (``model.contact``, :class:`rodnet.contact.cosserat.CosseratContactModel`) runs the loop with
+    contact and free bodies, :func:`rodnet.kernels.rod_contact_compiled.advance_rods_contact`:
+    ``near_dt`` [s] (default ``plan.dt``) is then its step while a body is within reach of a
+    thread (E5), and friction work goes to ``stats.extra["friction_work"]`` [J].
 
     Raises
     ------
     SimulationFailed
-        When the state becomes non-finite; every earlier frame has been handed on.
+        When the state becomes non-finite, or a point near a body moves so fast that its
+        travel-limited step falls below ``MIN_STEP_FRACTION`` of the step; every earlier frame
+        has been handed on.
     """
     n3 = 3 * model.n_nodes
     x, quat = np.array(q0.x, dtype=float), np.array(q0.quat, dtype=float)
@@ -294,6 +304,11 @@ def integrate_explicit_rods(model: CosseratModel, q0: RodConfiguration, v0: Floa
     W = np.array(v0[n3:], dtype=float).reshape(-1, 3)
     element, nodes, scratch = kernel_arrays(model)
     stats = StepStats() if stats is None else stats  # filled in place: kept if the run fails
+    contact = getattr(model, "contact", None)
+    bodies = None if contact is None else _contact_arguments(model, nodes[0])
+    near = plan.dt if near_dt is None else min(near_dt, plan.dt)
+    if contact is not None:
+        stats.extra.setdefault("friction_work", 0.0)
 
     def velocities() -> FloatArray:
         return np.concatenate([v.ravel(), W.ravel()])
@@ -301,18 +316,52 @@ def integrate_explicit_rods(model: CosseratModel, q0: RodConfiguration, v0: Floa
     on_frame(float(times[0]), RodConfiguration(x.copy(), quat.copy()), velocities())
     for t_start, t_end in zip(times[:-1], times[1:]):
         _, h = whole_steps(t_start, t_end, plan.dt)
-        status, t, steps, h_min, peak, phi = advance_explicit(
-            x, quat, v, W, float(t_start), float(t_end), h, element, plan.control, nodes, scratch)
+        if bodies is None:
+            status, t, steps, h_min, peak, phi = advance_explicit(
+                x, quat, v, W, float(t_start), float(t_end), h, element, plan.control, nodes,
+                scratch)
+        else:
+            status, t, steps, h_min, peak, phi, work = advance_rods_contact(
+                x, quat, v, W, float(t_start), float(t_end), h, near,
+                MIN_STEP_FRACTION * plan.dt, *element[:8], bool(element[8]), float(element[9]),
+                *SERIES_ARGUMENTS, *plan.control, *nodes, *scratch, *bodies)
+            stats.extra["friction_work"] += work
         stats.record_step(h_min, steps)
         stats.function_evaluations += steps
         stats.max_tension = max(stats.max_tension, peak)
         stats.max_element_rotation = max(stats.max_element_rotation or 0.0, phi)
-        if status != 0 or not (np.isfinite(v).all() and np.isfinite(W).all()):
+        if status == 2:
             raise SimulationFailed(
-                f"{diverged(t, h, plan.stable_step)} and the largest element rotation reached "
-                f"{phi:.3g} rad (limit 2 pi); reduce simulation.explicit_safety, or use more "
-                "elements_per_thread if that rotation is near 2 pi")
+                f"at t = {t:.6g} s a thread point near a body moves so fast that a step within "
+                f"its travel limit would be below {MIN_STEP_FRACTION * plan.dt:.3g} s; check the "
+                "scene's speeds")
+        if status != 0 or not (np.isfinite(v).all() and np.isfinite(W).all()):
+            scene = "this scene" if contact is None else "the threads alone"
+            raise SimulationFailed(
+                f"{diverged(t, h, plan.stable_step, scene)} and the largest element rotation "
+                f"reached {phi:.3g} rad (limit 2 pi); reduce simulation.explicit_safety, or use "
+                "more elements_per_thread if that rotation is near 2 pi")
         on_frame(float(t_end), RodConfiguration(x.copy(), quat.copy()), velocities())
         if on_progress is not None:
             on_progress(float(t_end), h, stats)
     return stats
+
+
+def _contact_arguments(model: CosseratModel, inv_mass: FloatArray) -> tuple:
+    """The contact and body arguments of
+    :func:`rodnet.kernels.rod_contact_compiled.advance_rods_contact`, from ``contact_inv_mass``
+    on, for ``model.contact``; the bodies' state ``model.contact.motion`` is reset to the start
+    state and is advanced in place by the loop (the frame sink reads it)."""
+    contact = model.contact
+    motion = contact.motion
+    motion.set(contact.start_motion())
+    # a node's largest inverse mass over its axes (0 only when every axis is supported)
+    node_inv_mass = np.ascontiguousarray(inv_mass.max(axis=1))
+    free_inertia = np.ascontiguousarray(np.where(contact.free[:, None, None], contact.inertia, 0.0))
+    n = model.n_nodes
+    return (*contact.kernel_arguments(node_inv_mass), *contact.kernel_motion(motion),
+            motion.quaternion, motion.momentum, contact.inv_mass, free_inertia,
+            contact.inv_inertia, np.asarray(contact.gravity, dtype=float),
+            np.zeros(n, dtype=np.bool_), np.zeros((contact.n_bodies, 3)),
+            np.zeros((contact.n_bodies, 3)), np.full(contact.n_bodies, -np.inf),
+            np.zeros(contact.n_bodies))

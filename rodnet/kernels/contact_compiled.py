@@ -362,6 +362,44 @@ def _update_nodes(x, v, force, inv_mass, dt):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True)
+def largest_speed(v):  # pragma: no cover - compiled
+    """Largest node speed [m/s] of velocities ``v`` (N, 3)."""
+    top = 0.0
+    for i in range(v.shape[0]):
+        top = max(top, v[i, 0] ** 2 + v[i, 1] ** 2 + v[i, 2] ** 2)
+    return math.sqrt(top)
+
+
+@numba.njit(cache=True)
+def select_bodies(dt, node_speed, body_velocity, body_omega, bound_radius, travelled, clearance,
+                  active, body_force, body_moment):  # pragma: no cover - compiled
+    """(E4): mark in ``active`` (B,) the bodies that a thread point can have come within reach of
+    since their last evaluation (``travelled + 2 dt (2 node_speed + body speed) >= clearance``),
+    restart their ``travelled`` and zero the force and moment of the others; True when any is
+    active. ``node_speed`` [m/s] is the largest node speed, ``dt`` [s] the coming step."""
+    any_active = False
+    for b in range(active.shape[0]):
+        reach = 2.0 * dt * (2.0 * node_speed + body_speed(body_velocity, body_omega,
+                                                          bound_radius, b))
+        active[b] = travelled[b] + reach >= clearance[b]
+        if active[b]:
+            any_active = True
+            travelled[b] = 0.0
+        else:
+            for k in range(3):
+                body_force[b, k] = body_moment[b, k] = 0.0
+    return any_active
+
+
+@numba.njit(cache=True)
+def forget_clearance(active, clearance):  # pragma: no cover - compiled
+    """Make every ``active`` body's ``clearance`` (B,) -inf: evaluated again in the next step."""
+    for b in range(active.shape[0]):
+        if active[b]:
+            clearance[b] = -np.inf
+
+
+@numba.njit(cache=True)
 def advance_contact(x, v, force, t0, dt, n_steps,
                     segments, rest_length, EA, etaA, kink_strain, tension_only,
                     inv_mass, gravity_force, load_nodes, load_force, load_ramp,
@@ -408,30 +446,16 @@ def advance_contact(x, v, force, t0, dt, n_steps,
     n_bodies = kind.shape[0]
     active = np.zeros(n_bodies, np.bool_)
     scratch = np.empty((9, 3))  # for the free bodies' update
-    node_speed = 0.0
-    for i in range(x.shape[0]):
-        node_speed = max(node_speed, v[i, 0] ** 2 + v[i, 1] ** 2 + v[i, 2] ** 2)
-    node_speed = math.sqrt(node_speed)
+    node_speed = largest_speed(v)
     for step in range(n_steps):
         peak = accumulate_forces(x, v, t0 + step * dt, force, segments, rest_length, EA, etaA,
                                  kink_strain, tension_only, gravity_force, load_nodes,
                                  load_force, load_ramp)
-        any_active = False
-        for b in range(n_bodies):  # (E4)
-            reach = 2.0 * dt * (2.0 * node_speed + body_speed(body_velocity, body_omega,
-                                                              bound_radius, b))
-            active[b] = travelled[b] + reach >= clearance[b]
-            if active[b]:
-                any_active = True
-                travelled[b] = 0.0
-            else:
-                for k in range(3):
-                    body_force[b, k] = body_moment[b, k] = 0.0
+        any_active = select_bodies(dt, node_speed, body_velocity, body_omega, bound_radius,
+                                   travelled, clearance, active, body_force, body_moment)
         power, allowed = 0.0, np.inf
         if any_active and dt > near_dt * (1.0 + 1e-12):  # (E5): contact needs the shorter step
-            for b in range(n_bodies):
-                if active[b]:
-                    clearance[b] = -np.inf
+            forget_clearance(active, clearance)
             return max_tension, step, work, 3, near_dt
         if any_active:
             power, _, _, allowed = accumulate_contact(
@@ -442,9 +466,7 @@ def advance_contact(x, v, force, t0, dt, n_steps,
                 points_per_segment, body_position, body_rotation, body_velocity, body_omega,
                 active, taken, body_force, body_moment, clearance)
         if allowed < dt:
-            for b in range(n_bodies):
-                if active[b]:
-                    clearance[b] = -np.inf  # evaluate again at the shorter step
+            forget_clearance(active, clearance)  # evaluate again at the shorter step
             return max_tension, step, work, 2, allowed
         max_tension = max(max_tension, peak)
         work += dt * power

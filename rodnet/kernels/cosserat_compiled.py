@@ -34,6 +34,9 @@ _SERIES = np.ascontiguousarray(np.stack([
     cosserat_strain._BETA_SERIES, cosserat_strain._BETA_D_SERIES,
     so3._GAMMA_SERIES, so3._GAMMA_D_SERIES]), dtype=np.float64)
 _SWITCH_ANGLES = (float(cosserat_strain._SERIES_ANGLE), float(so3._GAMMA_SERIES_ANGLE))
+SERIES_ARGUMENTS = (_SERIES, *_SWITCH_ANGLES)
+"""The ``series, beta_angle, gamma_angle`` arguments of the compiled element loops: the Taylor
+series of the coefficients (C11) and the angles below which they are used."""
 
 
 def _as_float(a: ArrayLike) -> FloatArray:
@@ -605,6 +608,38 @@ def _update_explicit(x, quat, v, W, f_node, m_node, inv_mass, inertia, inv_inert
 
 
 @numba.njit(cache=True)
+def _element_forces(x, quat, v, W, pos_nodes, rot_nodes, offset_q, offset_R, rest_length,
+                    reference_strain, stiffness, tau, tension_only, kink, series, beta_angle,
+                    gamma_angle, xe, qe, ve, force, monitor):  # pragma: no cover - compiled
+    """Element forces ``force`` (E, 12) in the element ends' frames from the node state; returns
+    the largest axial force [N] and the largest element rotation ``|psi|`` [rad]. ``xe``, ``qe``,
+    ``ve`` and ``monitor`` are scratch arrays (:func:`_advance_explicit`)."""
+    none3, none33, none4 = np.empty((0, 3)), np.empty((0, 3, 3)), np.empty((0, 4))
+    none18, none9 = np.empty((0, 18)), np.empty((0, 9))
+    _gather_element_state(x, quat, v, W, pos_nodes, rot_nodes, offset_q, offset_R, xe, qe, ve)
+    _state_and_force(rest_length, reference_strain, stiffness, tau, xe, qe, ve, tension_only,
+                     kink, series, beta_angle, gamma_angle, force, none3, none33, none3,
+                     none4, none18, none9, monitor)
+    peak, phi = 0.0, 0.0
+    for e in range(monitor.shape[0]):
+        peak = max(peak, monitor[e, 0])
+        phi = max(phi, monitor[e, 1])
+    return peak, phi
+
+
+@numba.njit(cache=True)
+def _step_length(base, phi, angles, step_factor, t, t_end):  # pragma: no cover - compiled
+    """The step (C50) at the largest element rotation ``phi`` [rad]: ``base`` [s] times
+    ``step_factor`` interpolated at ``phi``; returns it, the step actually taken from ``t`` (cut
+    to land on ``t_end`` [s]) and whether that is the last one."""
+    h = base * np.interp(phi, angles, step_factor)
+    remaining = t_end - t
+    if h >= remaining * (1.0 - 1e-9):
+        return h, remaining, True
+    return h, h, False
+
+
+@numba.njit(cache=True)
 def _advance_explicit(x, quat, v, W, t0, t_end, h0, pos_nodes, rot_nodes, offset_q, offset_R,
                       rest_length, reference_strain, stiffness, tau, tension_only, kink, series,
                       beta_angle, gamma_angle, angles, step_factor, inv_mass, inertia,
@@ -629,26 +664,17 @@ def _advance_explicit(x, quat, v, W, t0, t_end, h0, pos_nodes, rot_nodes, offset
     peak, phi_max : float
         The largest axial force [N] and element rotation [rad] met on the way.
     """
-    none3, none33, none4 = np.empty((0, 3)), np.empty((0, 3, 3)), np.empty((0, 4))
-    none18, none9 = np.empty((0, 18)), np.empty((0, 9))
     peak, phi_max, h_min = 0.0, 0.0, h0
     t, steps = t0, 0
     while t < t_end:
-        _gather_element_state(x, quat, v, W, pos_nodes, rot_nodes, offset_q, offset_R, xe, qe, ve)
-        _state_and_force(rest_length, reference_strain, stiffness, tau, xe, qe, ve, tension_only,
-                         kink, series, beta_angle, gamma_angle, force, none3, none33, none3,
-                         none4, none18, none9, monitor)
-        phi = 0.0
-        for e in range(monitor.shape[0]):
-            peak = max(peak, monitor[e, 0])
-            phi = max(phi, monitor[e, 1])
+        step_peak, phi = _element_forces(x, quat, v, W, pos_nodes, rot_nodes, offset_q, offset_R,
+                                         rest_length, reference_strain, stiffness, tau,
+                                         tension_only, kink, series, beta_angle, gamma_angle, xe,
+                                         qe, ve, force, monitor)
+        peak = max(peak, step_peak)
         phi_max = max(phi_max, phi)
-        h = h0 * np.interp(phi, angles, step_factor)
-        h_min = min(h_min, h)
-        remaining = t_end - t
-        last = h >= remaining * (1.0 - 1e-9)
-        if last:
-            h = remaining
+        h_full, h, last = _step_length(h0, phi, angles, step_factor, t, t_end)
+        h_min = min(h_min, h_full)
         _nodal_forces(t, quat, pos_nodes, rot_nodes, offset_R, force, weight, load_nodes,
                       load_rot, load_force, load_moment, load_ramp, f_node, m_node)
         finite = _update_explicit(x, quat, v, W, f_node, m_node, inv_mass, inertia, inv_inertia, h)
