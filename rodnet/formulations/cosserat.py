@@ -337,7 +337,7 @@ class CosseratModel:
         force ``tension`` [N], ``curvature`` |(K_1, K_2)| [1/m] and ``twist`` K_0 [1/m]."""
         eps, stress = self.section_state(q, v)
         return {"positions": q.x.copy(), "velocities": v[:3 * self.n_nodes].reshape(-1, 3).copy(),
-                "rotations": q.quat[self._rotation_of_node], "tension": stress[:, 0],
+                "rotations": q.quat[self._rotation_of_node], "tension": self._tension(stress[:, 0]),
                 "curvature": np.hypot(eps[:, 4], eps[:, 5]), "twist": eps[:, 3]}
 
     @property
@@ -353,7 +353,14 @@ class CosseratModel:
 
     def axial_force(self, q: RodConfiguration, v: FloatArray) -> FloatArray:
         """Axial force N [N] of every element (the ``tension`` output), (E,)."""
-        return self.section_state(q, v)[1][:, 0]
+        return self._tension(self.section_state(q, v)[1][:, 0])
+
+    def _tension(self, N: FloatArray) -> FloatArray:
+        """The ``tension`` output from the axial resultants ``N`` (E,) [N]: ``N`` itself, except
+        that with the tension-only law an element whose material axis is against its chord (C51)
+        reports the magnitude of its pushing force: along the chord it pulls the ends together,
+        so every element of a tension-only thread reports a tension >= 0."""
+        return np.abs(N) if self.tension_only else N
 
     def energy(self, q: RodConfiguration, v: FloatArray, t: float = 0.0) -> dict[str, float]:
         """Kinetic (translational + rotational) and elastic energy [J]; ``t`` is unused (the

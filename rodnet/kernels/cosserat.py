@@ -33,7 +33,7 @@ from rodnet.kernels.cosserat_strain import (
 from rodnet.kernels import cosserat_compiled
 from rodnet.kernels.cosserat_tangent import tangents
 from rodnet.kernels.so3 import FloatArray, dexp_inv_apply
-from rodnet.kernels.tension import axial_energy, axial_force, ramp
+from rodnet.kernels.tension import REVERSED_STIFFNESS, axial_energy, axial_force, ramp
 
 
 def stress_resultants_and_moduli(
@@ -72,13 +72,19 @@ def stress_resultants_and_moduli(
     EA, e, e_rate = stiffness[:, 0], strain[:, 0], strain_rate[:, 0]
     stress[:, 0] = axial_force(e, e_rate, EA, tau * EA, kink_strain, tension_only)
     if tension_only:
-        _, slope = ramp(e, kink_strain)
+        # taut (N > 0) on the ramp of e; pushing (N < 0, (C51)) on the ramp of s = -1 - e, whose
+        # moduli with respect to e and de/dt have the same form in s and ds/dt = -de/dt
+        taut, pushing = stress[:, 0] > 0.0, stress[:, 0] < 0.0
+        s = np.where(pushing, -1.0 - e, e)
+        s_rate = np.where(pushing, -e_rate, e_rate)
+        _, slope = ramp(s, kink_strain)
         curvature = np.zeros_like(e)
         if kink_strain > 0.0:
-            curvature[(e > 0.0) & (e < kink_strain)] = 1.0 / kink_strain
-        taut = stress[:, 0] > 0.0
-        modulus[:, 0] = np.where(taut, EA * (slope + tau * curvature * e_rate), 0.0)
-        viscous_modulus[:, 0] = np.where(taut, tau * EA * slope, 0.0)
+            curvature[(s > 0.0) & (s < kink_strain)] = 1.0 / kink_strain
+        acting = taut | pushing
+        k = np.where(pushing, REVERSED_STIFFNESS, 1.0) * EA
+        modulus[:, 0] = np.where(acting, k * (slope + tau * curvature * s_rate), 0.0)
+        viscous_modulus[:, 0] = np.where(acting, tau * k * slope, 0.0)
     return stress, modulus, viscous_modulus
 
 

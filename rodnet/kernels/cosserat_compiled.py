@@ -26,6 +26,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from rodnet.kernels import cosserat_strain, so3
+from rodnet.kernels.tension import REVERSED_STIFFNESS
 from rodnet.kernels.so3 import FloatArray
 
 # rows: beta, beta'/phi (cosserat_strain.midpoint_coefficient), gamma, gamma'/phi
@@ -257,6 +258,16 @@ def _axial(e, e_rate, EA, tau, tension_only, kink):  # pragma: no cover - compil
     etaA = tau * EA
     if not tension_only:
         return EA * e + etaA * e_rate, EA, etaA
+    if e < -1.0:  # (C51): the mirrored ramp in s = -1 - e pushes; moduli as on the tension side
+        force, modulus, viscous = _tension(-1.0 - e, -e_rate, REVERSED_STIFFNESS * EA, tau, kink)
+        return -force, modulus, viscous
+    return _tension(e, e_rate, EA, tau, kink)
+
+
+@numba.njit(cache=True)
+def _tension(e, e_rate, EA, tau, kink):  # pragma: no cover - compiled
+    """The tension-only branch of :func:`_axial`: (C22)-(C26) with the total clamped at zero."""
+    etaA = tau * EA
     curvature = 0.0
     if kink == 0.0:
         r, slope = (e, 1.0) if e > 0.0 else (0.0, 0.0)
@@ -280,7 +291,9 @@ def _axial_energy_density(e, EA, Le, tension_only, kink):  # pragma: no cover - 
     """:func:`rodnet.kernels.tension.axial_energy` of one element."""
     if not tension_only:
         return 0.5 * EA * Le * (e * e)
-    ec = e if e > 0.0 else 0.0
+    ec = e if e > 0.0 else (-1.0 - e if e < -1.0 else 0.0)   # (C51) below e = -1
+    if e < -1.0:
+        EA = REVERSED_STIFFNESS * EA
     if kink == 0.0:
         integral = 0.5 * ec * ec
     elif ec < kink:
@@ -389,8 +402,9 @@ def _state_and_force(rest_length, reference_strain, stiffness, tau, x, q, veloci
         force[e, 9] = 0.5 * h0 - beta * ph0 + (AM0 - pm0)
         force[e, 10] = 0.5 * h1 - beta * ph1 + (AM1 - pm1)
         force[e, 11] = 0.5 * h2 - beta * ph2 + (AM2 - pm2)
-        if store_monitor:
-            monitor_out[e, 0], monitor_out[e, 1] = N0, phi
+        if store_monitor:  # the axial force along the chord: a reversed element's (C51) pulls
+            monitor_out[e, 0] = -N0 if tension_only and N0 < 0.0 else N0
+            monitor_out[e, 1] = phi
         if store:
             psi_out[e, 0], psi_out[e, 1], psi_out[e, 2] = p0, p1, p2
             for k in range(9):

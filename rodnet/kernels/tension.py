@@ -2,6 +2,11 @@
 
 Shared by the lumped reference, the cable element and the Cosserat element's axial part, so that
 the models agree exactly where they should. Equations: ``elements/spring/FORMULATION.md`` (S3)-(S6).
+
+A rod's axial strain can fall below -1 (its material axis turned away from its chord); there the
+tension-only law pushes back with the mirrored ramp, ``elements/cosserat/FORMULATION.md`` (C51).
+A segment's strain ``l / l0 - 1`` never does, so the lumped model and cables are unaffected (the
+lumped model's compiled loop leaves it out).
 """
 
 from __future__ import annotations
@@ -10,6 +15,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 FloatArray = NDArray[np.float64]
+
+REVERSED_STIFFNESS = 0.01
+"""Stiffness of the mirrored law below ``e = -1`` (C51) as a fraction of ``EA``: its bounce rings
+at a tenth of the axial frequency, which the explicit step resolves, and turning an element
+inside out still takes ``0.005 EA Le`` of work."""
 
 
 def ramp(strain: FloatArray, kink_strain: float) -> tuple[FloatArray, FloatArray]:
@@ -48,22 +58,26 @@ def axial_force(strain: FloatArray, strain_rate: FloatArray, EA: FloatArray, eta
     kink_strain : float
         See :func:`ramp`.
     tension_only : bool
-        True: the total is clamped at zero and vanishes for a slack segment; False: linear law.
+        True: the total is clamped at zero and vanishes for a slack segment (pushing only below
+        ``e = -1``, (C51)); False: linear law.
     """
     if not tension_only:
         return EA * strain + etaA * strain_rate
     r, slope = ramp(strain, kink_strain)
-    return np.maximum(EA * r + etaA * slope * strain_rate, 0.0)
+    tension = np.maximum(EA * r + etaA * slope * strain_rate, 0.0)
+    r, slope = ramp(-1.0 - strain, kink_strain)     # (C51): only below e = -1
+    return tension - REVERSED_STIFFNESS * np.maximum(EA * r - etaA * slope * strain_rate, 0.0)
 
 
 def axial_energy(strain: FloatArray, EA: FloatArray, rest_length: FloatArray,
                  kink_strain: float, tension_only: bool) -> FloatArray:
-    """Elastic energy [J] stored in each segment, (S6)."""
+    """Elastic energy [J] stored in each segment, (S6); below ``e = -1`` that of (C51)."""
     if not tension_only:
         return 0.5 * EA * rest_length * strain**2
-    e, d = np.clip(strain, 0.0, None), kink_strain
+    # the tension side and the mirrored side (C51); at most one of them is non-zero
+    e, d = np.clip(strain, 0.0, None) + np.clip(-1.0 - strain, 0.0, None), kink_strain
     if d == 0.0:
         integral = 0.5 * e * e
     else:
         integral = np.where(e < d, e**3 / (6.0 * d), 0.5 * e * e - 0.5 * d * e + d * d / 6.0)
-    return EA * rest_length * integral
+    return np.where(strain < -1.0, REVERSED_STIFFNESS, 1.0) * EA * rest_length * integral

@@ -48,10 +48,12 @@ def relative_angles(rng, n):
 
 
 def axial_strains(rng, n):
-    """Slack, inside the ramp ``0 < e < KINK``, and taut, cycling."""
+    """Slack, inside the ramp ``0 < e < KINK``, taut, and material axis against the chord
+    (``e < -1``, (C51)) beyond and inside the mirrored ramp, cycling."""
     kinds = [rng.uniform(-0.2, -1e-2, n), KINK * rng.uniform(0.05, 0.95, n),
-             rng.uniform(2 * KINK, 0.3, n)]
-    return np.choose(np.arange(n) % 3, kinds)
+             rng.uniform(2 * KINK, 0.3, n), rng.uniform(-1.4, -1.0 - 2 * KINK, n),
+             -1.0 - KINK * rng.uniform(0.05, 0.95, n)]
+    return np.choose(np.arange(n) % 5, kinds)
 
 
 def set_chord(x, q, rest_length, reference_strain, gamma):
@@ -130,6 +132,7 @@ def test_states_cover_the_branches(case):
     strain = cosserat.strains(rest_length, reference_strain, x, q)
     e = strain[:, 0]
     assert np.any(e < 0.0) and np.any((e > 0.0) & (e < kink)) and np.any(e > kink)
+    assert np.any(e < -1.0 - kink) and np.any((e < -1.0) & (e > -1.0 - kink))
     if tension_only and tau[0] > 0.0:
         rate = strain_rates_from_kinematics(psi, R_m, g, reduce_velocity(velocity), rest_length)
         N = cosserat.stress_resultants_numpy(stiffness, tau, strain, rate, tension_only, kink)[:, 0]

@@ -6,6 +6,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from rodnet.kernels import cosserat, so3
+from rodnet.kernels.tension import REVERSED_STIFFNESS
 from rodnet.kernels.cosserat_strain import (
     kinematics, midpoint_coefficient, reduce_velocity, strain_rates_from_kinematics,
 )
@@ -156,8 +157,11 @@ def test_tension_only_energy_follows_the_ramp():
     n, kink = 3, 1e-3
     rest_length, x, q, ref = stress_free(rng, n, curved=True)
     stiffness = section(rng, n)
+    mirrored = REVERSED_STIFFNESS   # material axis against the chord (C51): the ramp mirrored
     for e, integral in ((-0.1, 0.0), (kink / 2, (kink / 2) ** 3 / (6 * kink)),
-                        (0.05, 0.05**2 / 2 - kink * 0.05 / 2 + kink**2 / 6)):
+                        (0.05, 0.05**2 / 2 - kink * 0.05 / 2 + kink**2 / 6),
+                        (-1.0 - kink / 2, mirrored * (kink / 2) ** 3 / (6 * kink)),
+                        (-1.05, mirrored * (0.05**2 / 2 - kink * 0.05 / 2 + kink**2 / 6))):
         xe = set_chord(x, q, rest_length, ref, np.tile([e, 0.0, 0.0], (n, 1)))
         energy = cosserat.strain_energy(rest_length, ref, stiffness, xe, q, TENSION_ONLY, kink)
         # shear strains are round-off here: their energy is ~1e-32 EA Le
@@ -197,7 +201,8 @@ def test_midpoint_coefficient_is_accurate_on_both_sides_of_the_series_switch():
 
 
 @pytest.mark.parametrize("tension_only, axial_strain", [
-    (LINEAR, -0.2), (LINEAR, 0.3), (TENSION_ONLY, -0.1), (TENSION_ONLY, 5e-4), (TENSION_ONLY, 0.25)])
+    (LINEAR, -0.2), (LINEAR, 0.3), (TENSION_ONLY, -0.1), (TENSION_ONLY, 5e-4), (TENSION_ONLY, 0.25),
+    (TENSION_ONLY, -1.0005), (TENSION_ONLY, -1.3)])
 def test_internal_force_is_the_lie_algebra_gradient_of_the_energy(tension_only, axial_strain):
     rng = np.random.default_rng(5)
     n, kink = 30, 1e-3
@@ -222,6 +227,11 @@ TANGENT_CASES = {
     "tension-only, ramp, damped": (TENSION_ONLY, 5e-4, 0.02, 0.05),
     "tension-only, clamped": (TENSION_ONLY, 0.2, -10.0, 0.05),
     "tension-only, ramp, clamped": (TENSION_ONLY, 5e-4, -0.2, 0.05),
+    # material axis against the chord: the mirrored law (C51) pushes
+    "tension-only, reversed": (TENSION_ONLY, -1.3, 0.0, 0.0),
+    "tension-only, reversed, ramp": (TENSION_ONLY, -1.0004, 0.0, 0.0),
+    "tension-only, reversed, damped": (TENSION_ONLY, -1.2, -2.0, 0.05),
+    "tension-only, reversed, clamped": (TENSION_ONLY, -1.2, 10.0, 0.05),
 }
 
 
@@ -264,7 +274,7 @@ def test_damping_tangent_matches_velocity_finite_differences(name):
         return
     assert np.all(relative_error(C, fd) < 1e-6)
     # Le B^T diag(tau C) B, without the axial entry where the clamp holds or the thread is slack
-    axial = 0.0 if "clamped" in name else 1.0
+    axial = 0.0 if "clamped" in name else REVERSED_STIFFNESS if "reversed" in name else 1.0
     B = cosserat.strain_matrix(rest_length, x, q)
     viscous = tau[:, None] * stiffness * [axial, 1, 1, 1, 1, 1]
     if "ramp" in name and "clamped" not in name:
