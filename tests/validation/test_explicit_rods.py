@@ -18,6 +18,7 @@ from rodnet.kernels.tension import REVERSED_STIFFNESS
 from rodnet.run import prepare, run
 from rodnet.scene import scene_from_toml
 from tests.conftest import small_net_toml
+from tests.contact.scenes import cord
 
 CANTILEVER = """
 [simulation]
@@ -225,11 +226,7 @@ adaptive = false
 dt = 5.0e-5
 [model]
 type = "cosserat"
-[[materials]]
-name = "cord"
-density = 1000.0
-youngs_modulus = 1.0e9
-diameter = 2.0e-3
+""" + cord() + """
 [[rods]]
 name = "r"
 material = "cord"
@@ -255,21 +252,21 @@ def test_ends_driven_through_each_other_bounce_and_the_thread_holds(integrator: 
     zero, then reversed: material axis against the chord) is pushed back by (C51), a spring of
     stiffness ``k = REVERSED_STIFFNESS EA / L`` on the reversed chord: the ends, closing at
     ``v = 2`` m/s, overshoot by ``v sqrt(mu / k)`` (``mu`` their reduced mass), bounce, and the
-    thread then catches them in tension at its length. With the tension-only law alone the
-    reversed element has no axial force and the ends fly apart (the run stops on the inverted
-    element). The step resolves the bounce (symplectic Euler's energy error while the ends press
-    stays below the run's 10 % guard)."""
+    thread then catches them in tension at its length (elastic stretch ``v sqrt(mu L / EA)``).
+    With the tension-only law alone the reversed element has no axial force and the ends fly
+    apart (the run stops on the inverted element). The step resolves the bounce (symplectic
+    Euler's energy error while the ends press stays below the run's 10 % guard)."""
     scene = scene_from_toml(CROSSING.format(integrator=integrator))
     r = run(scene, progress=False)
     assert r.status == "ok", r.message
     x = r.arrays["positions"]
     separation = x[:, 1, 0] - x[:, 0, 0]           # along the rod's own axis, +x at rest
-    material = scene.materials[0]
-    area = np.pi * material.diameter**2 / 4
-    m = 0.01 + 0.5 * material.density * area * 0.1
-    k = REVERSED_STIFFNESS * material.youngs_modulus * area / 0.1
+    material = scene.materials[0]                    # the cord: EA and mass per length given
+    m = 0.01 + 0.5 * material.mass_per_length * 0.1
+    k = REVERSED_STIFFNESS * material.axial_stiffness / 0.1
     overshoot = 2.0 * np.sqrt(0.5 * m / k)
     assert -separation.min() == pytest.approx(overshoot, rel=0.03)
-    assert separation.max() < 0.1 * 1.01            # the tension caught them at L
+    # the tension caught them at L, stretching the thread by at most v sqrt(mu L / EA)
+    assert separation.max() - 0.1 < 1.05 * 2.0 * np.sqrt(0.5 * m * 0.1 / material.axial_stiffness)
     after = r.arrays["time"] > 0.07                  # they met at 0.05 s
     assert separation[after].max() > 0.09            # apart again: the bounce kept its energy
