@@ -249,20 +249,29 @@ def _fmt(value: Any) -> str:
 
 
 def spatial_orders(study: Study, records: dict[str, dict[str, Any]]) -> list[str]:
-    """Observed spatial order of the max mouth area from the Cosserat runs at their finest
-    tolerance: ``log2(|A_n - A_2n| / |A_2n - A_4n|)`` for successive halvings."""
-    finest: dict[int, float] = {}
+    """Observed spatial order of the max mouth area of every model refined in elements per
+    thread: runs whose curve ends in ``n=<elements>`` are grouped by the rest of the curve name
+    (``"cosserat pinned explicit n=4"``: ``"cosserat pinned explicit"``) and by setting, and
+    ``log2(|A_n - A_2n| / |A_2n - A_4n|)`` is reported for successive halvings."""
+    groups: dict[tuple[str, str], dict[int, float]] = {}
     for run in study.runs:
-        match = re.fullmatch(r"cosserat n=(\d+)", run.curve)
+        match = re.fullmatch(r"(.*?)\s*n=(\d+)", run.curve)
         rec = records[run.label]
         if match and rec["summary"].get("status") == "ok":
-            finest[int(match.group(1))] = rec["summary"]["metrics"]["max_mouth_area"]  # last = finest
-    ns = sorted(finest)
-    lines = [f"max mouth area at n = {n}: {finest[n]:.6g} m^2" for n in ns]
-    for a, b, c in zip(ns, ns[1:], ns[2:]):
-        d1, d2 = abs(finest[a] - finest[b]), abs(finest[b] - finest[c])
-        if d2 > 0:
-            lines.append(f"observed order, n = {a}, {b}, {c}: {math.log2(d1 / d2):.2f}")
+            areas = groups.setdefault((match.group(1), run.setting), {})
+            areas[int(match.group(2))] = rec["summary"]["metrics"]["max_mouth_area"]
+    lines = []
+    for (model, setting), areas in groups.items():
+        ns = sorted(areas)
+        if len(ns) < 2:
+            continue
+        lines.append(f"{model}, {setting}: max mouth area "
+                     + ", ".join(f"{areas[n]:.6g} m^2 at n = {n}" for n in ns))
+        for a, b, c in zip(ns, ns[1:], ns[2:]):
+            d1, d2 = abs(areas[a] - areas[b]), abs(areas[b] - areas[c])
+            if d2 > 0 and b == 2 * a and c == 2 * b:
+                lines.append(f"{model}, {setting}: observed order, n = {a}, {b}, {c}: "
+                             f"{math.log2(d1 / d2):.2f}")
     return lines
 
 

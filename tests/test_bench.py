@@ -43,3 +43,18 @@ def test_tables_and_observed_spatial_order(tmp_path: Path) -> None:
     assert (tmp_path / "work_precision.csv").read_text().count("\n") == 4
     row = text.splitlines()[6].split(" | ")
     assert float(row[10]) == pytest.approx(100 * 7.5 / 450.5, rel=1e-3)  # n = 1: error in %
+
+
+def test_orders_are_per_model_and_setting() -> None:
+    """Runs of another setting at the same n (a reference at a smaller step) do not enter the
+    order of the setting refined in n, and each model gets its own line."""
+    runs = [BenchRun(f"rods explicit n={n}", "safety 0.5", "bending", ()) for n in (1, 2, 4)]
+    runs += [BenchRun("rods explicit n=2", "safety 0.25", "bending", ()),
+             BenchRun("cables n=1", "safety 0.5", "none", ()),
+             BenchRun("cables n=2", "safety 0.5", "none", ())]
+    areas = [450.0 + 8.0 / n**4 for n in (1, 2, 4)] + [400.0, 460.0, 455.0]
+    records = {r.label: _record(a, 1.3, 15.0, [0.0, 1.0]) for r, a in zip(runs, areas)}
+    lines = spatial_orders(Study(runs, {"bending": runs[3].label}, 3.0), records)
+    assert lines[1] == "rods explicit, safety 0.5: observed order, n = 1, 2, 4: 4.00"
+    assert any(line.startswith("cables, safety 0.5: max mouth area 460") for line in lines)
+    assert not any("safety 0.25" in line and "order" in line for line in lines)

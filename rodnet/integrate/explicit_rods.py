@@ -331,10 +331,12 @@ def integrate_explicit_rods(model: CosseratModel, q0: RodConfiguration, v0: Floa
         stats.max_tension = max(stats.max_tension, peak)
         stats.max_element_rotation = max(stats.max_element_rotation or 0.0, phi)
         if status == 2:
+            cause = (f"the largest element rotation reached {phi:.3g} rad, near the element's "
+                     "limit of 2 pi: the solution diverged there; use more elements_per_thread"
+                     if phi > 0.9 * 2.0 * math.pi else "check the scene's speeds")
             raise SimulationFailed(
                 f"at t = {t:.6g} s a thread point near a body moves so fast that a step within "
-                f"its travel limit would be below {MIN_STEP_FRACTION * plan.dt:.3g} s; check the "
-                "scene's speeds")
+                f"its travel limit would be below {MIN_STEP_FRACTION * plan.dt:.3g} s; {cause}")
         if status != 0 or not (np.isfinite(v).all() and np.isfinite(W).all()):
             scene = "this scene" if contact is None else "the threads alone"
             raise SimulationFailed(

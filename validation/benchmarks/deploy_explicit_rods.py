@@ -49,6 +49,10 @@ def study() -> Study:
         BenchRun("cosserat pinned explicit n=2", "safety 0.25", "bending", PINNED + _n(2) + EXPLICIT + _safety(0.25)),
         BenchRun("cosserat rigid explicit n=2", "safety 0.5", "bending", RIGID + _n(2) + EXPLICIT + _safety(0.5)),
         BenchRun("cosserat pinned explicit n=1", "safety 0.5", "bending", PINNED + _n(1) + EXPLICIT + _safety(0.5)),
+        BenchRun("lumped explicit n=4", "safety 0.5", "no bending", ("model.type=lumped",) + _n(4) + _safety(0.5)),
+        BenchRun("lumped explicit n=8", "safety 0.5", "no bending", ("model.type=lumped",) + _n(8) + _safety(0.5)),
+        BenchRun("cosserat pinned explicit n=4", "safety 0.5", "bending", PINNED + _n(4) + EXPLICIT + _safety(0.5)),
+        BenchRun("cosserat pinned explicit n=8", "safety 0.5", "bending", PINNED + _n(8) + EXPLICIT + _safety(0.5)),
     ]
     references = {"no bending": runs[2].label, "bending": runs[4].label}
     notes = ["Explicit rods: symplectic Euler with the rotary inertia scaled (C49), the element "

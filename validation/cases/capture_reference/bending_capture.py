@@ -43,9 +43,11 @@ VARIANTS = {
     "cables n=2": ROD + ("model.bending=false", "model.torsion=false"),
     "rods n=2 pinned": ROD + ("model.knots=pinned",),
     "rods n=2 rigid": ROD + ("model.knots=rigid",),
+    "rods n=4 pinned": ("model.type=cosserat", "model.elements_per_thread=4",
+                        "simulation.integrator=explicit", "model.knots=pinned"),
 }
 STYLE = {"lumped n=1": ("0.5", "-"), "cables n=2": ("k", "-"), "rods n=2 pinned": ("tab:blue", "-"),
-         "rods n=2 rigid": ("tab:red", "--")}
+         "rods n=2 rigid": ("tab:red", "--"), "rods n=4 pinned": ("tab:green", "-")}
 
 
 def folder(variant: str) -> Path:
