@@ -326,10 +326,13 @@ def integrate_explicit_rods(model: CosseratModel, q0: RodConfiguration, v0: Floa
                 MIN_STEP_FRACTION * plan.dt, *element[:8], bool(element[8]), float(element[9]),
                 *SERIES_ARGUMENTS, *plan.control, *nodes, *scratch, *bodies)
             stats.extra["friction_work"] += work
-        stats.record_step(h_min, steps)
         stats.function_evaluations += steps
-        stats.max_tension = max(stats.max_tension, peak)
         stats.max_element_rotation = max(stats.max_element_rotation or 0.0, phi)
+        if status == 0:  # a failed interval's shortest step and peak force are the divergence's
+            stats.record_step(h_min, steps)
+            stats.max_tension = max(stats.max_tension, peak)
+        else:
+            stats.steps += steps
         if status == 2:
             cause = (f"the largest element rotation reached {phi:.3g} rad, near the element's "
                      "limit of 2 pi: the solution diverged there; use more elements_per_thread"

@@ -140,14 +140,29 @@ def report(duration: float) -> str:
         behind = m["least_behind"] > RADIUS
         since = f"{a['time'][np.argmax(behind)]:.2f}" if behind.any() else "never"
         integrator = s["integrator"]
-        rows.append([variant, s["status"] + (f" at {a['time'][-1]:.2f} s" if s["status"] != "ok" else ""),
-                     f"{s['wall_time_s']:.0f}", f"{s['steps']}", f"{integrator['dt_min']:.3g}",
+        ok = s["status"] == "ok"   # a failed run's step statistics include its diverging steps
+        rows.append([variant, s["status"] + ("" if ok else f" at {a['time'][-1]:.2f} s"),
+                     f"{s['wall_time_s']:.0f}", f"{s['steps']}",
+                     f"{integrator['dt_min']:.3g}" if ok else "-",
                      f"{integrator.get('rotary_inertia_scale') or 1:.3g}",
                      f"{a['contact_force'].max():.0f}", f"{a['friction_work'][-1]:.1f}",
-                     f"{s['metrics']['max_tension']:.0f}",
+                     f"{s['metrics']['max_tension']:.0f}" if ok else "-",
                      since, np.array2string(100 * a["body_velocities"][-1, 0], precision=2),
                      np.array2string(np.degrees(a["body_angular_velocities"][-1, 0]), precision=2),
                      f"{100 * m['knots_near'][-1]:.0f} %", f"{100 * m['relative_speed'][-1]:.1f}"])
+    # the window every variant reached: compare with and without bending on equal terms
+    common = min(a["time"][-1] for _, a, _ in data.values())
+    window = [["variant", f"largest contact force to {common:.2f} s [N]",
+               f"friction work at {common:.2f} s [J]",
+               f"largest thread tension at the frames to {common:.2f} s [N]",
+               f"target v at {common:.2f} s [cm/s]", "omega [deg/s]", "knots within 0.5 m"]]
+    for variant, (s_, a, m) in data.items():
+        f = int(np.searchsorted(a["time"], common - 1e-9))
+        window.append([variant, f"{a['contact_force'][:f + 1].max():.0f}",
+                       f"{a['friction_work'][f]:.1f}", f"{a['tension'][:f + 1].max():.0f}",
+                       np.array2string(100 * a["body_velocities"][f, 0], precision=2),
+                       np.array2string(np.degrees(a["body_angular_velocities"][f, 0]), precision=2),
+                       f"{100 * m['knots_near'][f]:.0f} %"])
     state = [["t [s]", *data]]
     for instant in INSTANTS:
         row = [f"{instant:.1f}"]
@@ -169,7 +184,13 @@ wall times on the shared 2-core machine). Figure: `docs/img/capture_bending.png`
 {table(rows)}
 
 "corners behind from": the first frame at which all four corner masses are behind the target's
-centre by more than its radius. "largest thread tension": over every step.
+centre by more than its radius. "largest thread tension": over every step (not shown for a run
+that failed: its step statistics include the diverging steps). A failed run's other columns are
+those of its last saved frame.
+
+## Up to {common:.2f} s, the time every variant reached
+
+{table(window)}
 
 ## Over time (contact force, target velocity down-range, knots within {NEAR} m)
 
