@@ -86,9 +86,9 @@ def integrate_explicit(model: LumpedModel, x0: NDArray[np.float64], v0: NDArray[
         peak, done = advance(x, v, scratch, float(t_start), h, n_steps, *args)
         stats.record_step(h, done)
         stats.function_evaluations += done
-        stats.max_tension = max(stats.max_tension, peak)
-        if done < n_steps or not np.isfinite(v).all():
+        if done < n_steps or not np.isfinite(v).all():  # its peak is the divergence's: not kept
             raise diverged(t_start + done * h, h, model.stable_step())
+        stats.max_tension = max(stats.max_tension, peak)
         on_frame(float(t_end), x, v)
         if on_progress is not None:
             on_progress(float(t_end), h, stats)

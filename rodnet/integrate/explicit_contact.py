@@ -75,11 +75,11 @@ def march_with_contact(model: LumpedContactModel, x: NDArray[np.float64], v: NDA
             if done:
                 stats.record_step(h, done)
             stats.function_evaluations += done + (status in (2, 3))
-            stats.max_tension = max(stats.max_tension, peak)
             stats.extra["friction_work"] += work
-            if status == 1 or not np.isfinite(v).all():
+            if status == 1 or not np.isfinite(v).all():  # its peak is the divergence's: not kept
                 raise diverged(t + done * h, h, model.stable_step(),
                                "this scene, contact included,")
+            stats.max_tension = max(stats.max_tension, peak)
             if status == 0:
                 break
             t += done * h
