@@ -8,7 +8,6 @@ diverges or is interrupted still writes its frames, ``result.npz`` and a ``summa
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -72,13 +71,13 @@ def prepare(scene: Scene) -> Prepared:
                              f"integrator ({', '.join(IMPLICIT)}) or 'explicit'")
         mass = model.node_mass
         if integrator == "explicit" and sim.type == "dynamic":
-            from rodnet.integrate.explicit_rods import explicit_plan
+            from rodnet.integrate.explicit_rods import explicit_plan, node_inverse_mass
 
             plan = explicit_plan(model, sim.dt, sim.adaptive, sim.explicit_safety,
                                  sim.rotary_inertia_scaling)
             near_dt = None
             if scene.bodies:  # the step while a body is within reach: contact springs too (E1)
-                near = _with_contact_springs(plan.stable_step, model)
+                near = model.contact.combined_step(plan.stable_step, node_inverse_mass(model))
                 near_dt = sim.explicit_safety * near if sim.adaptive else min(plan.dt, near)
             return _prepared_times(scene, plan.model(model), q0, plan.initial_velocities(model, v0),
                                    plan.dt, mass, structure, rod_plan=plan, near_dt=near_dt)
@@ -106,18 +105,6 @@ def prepare(scene: Scene) -> Prepared:
     if sim.type == "static":
         _check_supported(model, q0, [s.node for s in scene.supports])
     return _prepared_times(scene, model, q0, v0, dt, mass, structure, near_dt=near_dt)
-
-
-def _with_contact_springs(limit: float, model: Any) -> float:
-    """The explicit limit [s] of a rod model whose own limit is ``limit`` [s] with the contact
-    springs of ``model.contact`` added, as :meth:`rodnet.contact.lumped.LumpedContactModel.stable_step`
-    (E1): ``1/dt^2 = 1/limit^2 + 1/dt_contact^2``."""
-    free = model.free[:3 * model.n_nodes].reshape(-1, 3).any(axis=1)
-    inv_mass = np.where(free, 1.0 / np.maximum(model.node_mass, 1e-300), 0.0)
-    contact = model.contact.stable_step(inv_mass)
-    if not math.isfinite(contact):
-        return limit
-    return 1.0 / math.sqrt(1.0 / limit**2 + 1.0 / contact**2)
 
 
 def _prepared_times(scene: Scene, model: Any, q0: Any, v0: NDArray[np.float64], dt: float,

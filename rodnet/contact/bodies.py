@@ -171,6 +171,16 @@ class BodyContact:
         m = self.motion if motion is None else motion
         return m.position, m.rotation, m.velocity, m.omega
 
+    def combined_step(self, threads: float, inv_mass: FloatArray) -> float:
+        """The explicit limit [s] of threads whose own limit is ``threads`` [s] with these contact
+        springs added (E1): ``1/dt^2 = 1/dt_threads^2 + 1/dt_contact^2``, which is
+        ``omega^2 = omega_threads^2 + omega_contact^2`` without damping; ``inv_mass`` (N,) as for
+        :meth:`stable_step`."""
+        contact = self.stable_step(inv_mass)
+        if not math.isfinite(contact):
+            return threads
+        return 1.0 / math.sqrt(1.0 / threads**2 + 1.0 / contact**2)
+
     def stable_step(self, inv_mass: FloatArray) -> float:
         """Stability limit [s] of symplectic Euler under the contact springs alone (inf when no
         node can move), (E1).

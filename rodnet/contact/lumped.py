@@ -13,7 +13,6 @@ point near a body more than its travel limit is retried shorter) and
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -60,13 +59,8 @@ class LumpedContactModel(LumpedModel):
             pattern.matrix([C_blocks - c.d_velocity])
 
     def stable_step(self) -> float:
-        """(S10) combined with the contact springs (E1): ``1/dt^2 = 1/dt_seg^2 + 1/dt_contact^2``,
-        which is ``omega^2 = omega_seg^2 + omega_contact^2`` without damping."""
-        segments = super().stable_step()
-        contact = self.contact.stable_step(self.inv_mass)
-        if not math.isfinite(contact):
-            return segments
-        return 1.0 / math.sqrt(1.0 / segments**2 + 1.0 / contact**2)
+        """(S10) combined with the contact springs (E1), :meth:`BodyContact.combined_step`."""
+        return self.contact.combined_step(super().stable_step(), self.inv_mass)
 
     def far_stable_step(self) -> float:
         """(S10) of the threads alone [s]: the explicit loop's step limit while no body is within

@@ -305,7 +305,7 @@ def integrate_explicit_rods(model: CosseratModel, q0: RodConfiguration, v0: Floa
     element, nodes, scratch = kernel_arrays(model)
     stats = StepStats() if stats is None else stats  # filled in place: kept if the run fails
     contact = getattr(model, "contact", None)
-    bodies = None if contact is None else _contact_arguments(model, nodes[0])
+    bodies = None if contact is None else _contact_arguments(model)
     near = plan.dt if near_dt is None else min(near_dt, plan.dt)
     if contact is not None:
         stats.extra.setdefault("friction_work", 0.0)
@@ -352,7 +352,14 @@ def integrate_explicit_rods(model: CosseratModel, q0: RodConfiguration, v0: Floa
     return stats
 
 
-def _contact_arguments(model: CosseratModel, inv_mass: FloatArray) -> tuple:
+def node_inverse_mass(model: CosseratModel) -> FloatArray:
+    """(N,) ``1 / m`` of every position node with a free axis, 0 for a fully supported one [1/kg]:
+    the node masses contact sees (its stability limit (E1) and friction cap (E2))."""
+    free = model.free[:3 * model.n_nodes].reshape(-1, 3).any(axis=1)
+    return np.where(free, 1.0 / np.maximum(model.node_mass, 1e-300), 0.0)
+
+
+def _contact_arguments(model: CosseratModel) -> tuple:
     """The contact and body arguments of
     :func:`rodnet.kernels.rod_contact_compiled.advance_rods_contact`, from ``contact_inv_mass``
     on, for ``model.contact``; the bodies' state ``model.contact.motion`` is reset to the start
@@ -360,8 +367,7 @@ def _contact_arguments(model: CosseratModel, inv_mass: FloatArray) -> tuple:
     contact = model.contact
     motion = contact.motion
     motion.set(contact.start_motion())
-    # a node's largest inverse mass over its axes (0 only when every axis is supported)
-    node_inv_mass = np.ascontiguousarray(inv_mass.max(axis=1))
+    node_inv_mass = np.ascontiguousarray(node_inverse_mass(model))
     free_inertia = np.ascontiguousarray(np.where(contact.free[:, None, None], contact.inertia, 0.0))
     n = model.n_nodes
     return (*contact.kernel_arguments(node_inv_mass), *contact.kernel_motion(motion),
