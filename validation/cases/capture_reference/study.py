@@ -4,9 +4,11 @@ The net is the built-in reference deployment (``rodnet demo``, lumped model, exp
 is a free cylinder of 2.4 m diameter, 6.5 m length and 1400 kg whose centre is 15 m down-range,
 its axis across the shooting direction (world x), tumbling end over end at 2 deg/s (about world
 y), with friction 0.3, for 6 s. The same capture runs with the target as an STL file of the same
-cylinder (64 facets around, written here with trimesh). A third pair of runs measures what
-contact costs while the target is far: the 3 s reference deployment without a body and with the
-cylinder 100 m down-range.
+cylinder (64 facets around, written here with trimesh). Two more cylinder runs, their radius
+smaller by the STL's faceting error (the facets' inscribed radius ``R cos(pi/64)``) and by half
+of it, measure how far a change of the target of that size moves the capture. A third pair of
+runs measures what contact costs while the target is far: the 3 s reference deployment without a
+body and with the cylinder 100 m down-range.
 
 Writes ``out/`` (runs and the STL, not kept in git), ``results.md`` (the tables) and the figures
 ``docs/img/capture_shapes.png`` and ``docs/img/capture_history.png``. Usage, from the repository
@@ -33,6 +35,8 @@ HERE = Path(__file__).parent
 OUT = HERE / "out"
 IMG = HERE.parents[2] / "docs" / "img"
 RADIUS, LENGTH, MASS = 1.2, 6.5, 1400.0
+SECTIONS = 64                              # facets around the STL cylinder
+FACETING = RADIUS * (1.0 - np.cos(np.pi / SECTIONS))   # m: the facets' largest distance to it
 INSTANTS = (1.2, 1.6, 2.5, 4.0, 6.0)      # s, the net shapes shown
 NEAR = 0.5                                 # m: a knot this close to the surface is "on" the target
 
@@ -44,9 +48,11 @@ friction = 0.3
 """
 
 
-def body_table(shape: str, distance: float) -> str:
-    """The ``[[bodies]]`` table of the target: a cylinder primitive or the STL mesh."""
-    geometry = (f'shape = "cylinder"\nsize = [{2 * RADIUS}, {2 * RADIUS}, {LENGTH}]'
+def body_table(shape: str, distance: float, radius: float = RADIUS) -> str:
+    """The ``[[bodies]]`` table of the target: a cylinder primitive of ``radius`` [m] or the STL
+    mesh."""
+    diameter = float(2 * radius)
+    geometry = (f'shape = "cylinder"\nsize = [{diameter!r}, {diameter!r}, {LENGTH}]'
                 if shape == "cylinder" else 'shape = "mesh"\nfile = "sl8.stl"')
     return f"""
 [[bodies]]
@@ -59,11 +65,12 @@ angular_velocity_deg = [0.0, 2.0, 0.0]
 """
 
 
-def scene_text(shape: str | None, distance: float = 15.0) -> str:
-    """The reference deployment, with the target (``shape`` "cylinder" or "mesh") or without."""
+def scene_text(shape: str | None, distance: float = 15.0, radius: float = RADIUS) -> str:
+    """The reference deployment, with the target (``shape`` "cylinder" of ``radius`` [m] or
+    "mesh") or without."""
     text = demo_scene_text().replace("picture = true", "picture = false") \
         .replace("plot = true", "plot = false")
-    return text if shape is None else text + body_table(shape, distance) + CONTACT
+    return text if shape is None else text + body_table(shape, distance, radius) + CONTACT
 
 
 def write_stl() -> Path:
@@ -72,7 +79,7 @@ def write_stl() -> Path:
 
     OUT.mkdir(parents=True, exist_ok=True)
     path = OUT / "sl8.stl"
-    trimesh.creation.cylinder(radius=RADIUS, height=LENGTH, sections=64).export(path)
+    trimesh.creation.cylinder(radius=RADIUS, height=LENGTH, sections=SECTIONS).export(path)
     return path
 
 
@@ -100,13 +107,15 @@ class FrameTimer:
         ContactLog.__call__ = self._original  # type: ignore[method-assign]
 
 
-def capture(shape: str, duration: float, vtk: bool) -> tuple[RunResult, float, float]:
-    """Run the capture with the target as ``shape``; returns the result, the wall time of the run
-    [s] and the part of it spent saving frames [s]."""
-    folder = OUT / f"capture_{shape}"
+def capture(shape: str, duration: float, vtk: bool, radius: float = RADIUS,
+            label: str | None = None) -> tuple[RunResult, float, float]:
+    """Run the capture with the target as ``shape`` (a cylinder of ``radius`` [m]); returns the
+    result, the wall time of the run [s] and the part of it spent saving frames [s]. ``label``
+    names the run's folder (default: ``shape``)."""
+    folder = OUT / f"capture_{label or shape}"
     folder.mkdir(parents=True, exist_ok=True)
-    scene_file = OUT / f"capture_{shape}.toml"
-    scene_file.write_text(scene_text(shape))
+    scene_file = OUT / f"capture_{label or shape}.toml"
+    scene_file.write_text(scene_text(shape, radius=radius))
     scene = load_scene(scene_file, [f"simulation.duration={duration:g}",
                                     "output.frame_interval=0.02", f"output.vtk={str(vtk).lower()}"])
     with FrameTimer() as timer:
@@ -257,6 +266,9 @@ def main() -> None:
         walls[shape] = (wall, frames, wall_quiet, frames_quiet)
         measures[shape] = capture_measures(result, shape)
         print(shape, walls[shape], result.summary["steps"])
+    perturbed = {f"cylinder, radius - {1000 * cut:.2f} mm":
+                 capture("cylinder", args.duration, False, RADIUS - cut, f"cut_{i}")[0]
+                 for i, cut in enumerate((FACETING / 2, FACETING))}
     free_wall, free_steps = deployment_wall(None, args.repeats, args.duration)
     far_wall, far_steps = deployment_wall("cylinder", args.repeats, 3.0)
     base_wall, base_steps = deployment_wall(None, args.repeats, 3.0)
@@ -264,12 +276,40 @@ def main() -> None:
     shapes_figure(results["cylinder"], IMG / "capture_shapes.png")
     history_figure(results, measures, IMG / "capture_history.png")
     write_results(results, walls, measures, (free_wall, free_steps),
-                  (base_wall, base_steps, far_wall, far_steps), args.duration)
+                  (base_wall, base_steps, far_wall, far_steps), args.duration, perturbed)
+
+
+def faceting_table(results: dict[str, RunResult], perturbed: dict[str, RunResult]) -> str:
+    """How far from the cylinder run the STL run and the runs in ``perturbed`` (label: result)
+    are, at several instants."""
+    cyl = results["cylinder"].arrays
+    others = {"STL mesh": results["mesh"].arrays,
+              **{label: r.arrays for label, r in perturbed.items()}}
+    rows = [["difference from the cylinder run", "t [s]", *others]]
+    for instant in (1.6, 2.5, 3.0, 4.5, cyl["time"][-1]):
+        f = int(np.argmin(np.abs(cyl["time"] - instant)))
+        def cells(key: str, scale: float) -> list[str]:
+            return [f"{scale * np.linalg.norm(a[key][f, 0] - cyl[key][f, 0]):.3g}"
+                    for a in others.values()]
+        knots = [np.linalg.norm(a["positions"][f, :441] - cyl["positions"][f, :441], axis=1).mean()
+                 for a in others.values()]
+        rows += [["target velocity [cm/s]", f"{cyl['time'][f]:.2f}",
+                  *cells("body_velocities", 100)],
+                 ["target angular velocity [deg/s]", "", *cells("body_angular_velocities",
+                                                                180 / np.pi)],
+                 ["knot positions, mean [m]", "", *[f"{k:.3g}" for k in knots]]]
+    rows.append(["largest contact force [N] (cylinder "
+                 f"{cyl['contact_force'].max():.0f})", "",
+                 *[f"{a['contact_force'].max():.0f}" for a in others.values()]])
+    rows.append([f"friction work [J] (cylinder {cyl['friction_work'][-1]:.1f})", "",
+                 *[f"{a['friction_work'][-1]:.1f}" for a in others.values()]])
+    return table(rows)
 
 
 def write_results(results: dict[str, RunResult], walls: dict[str, tuple[float, ...]],
                   measures: dict[str, dict[str, np.ndarray]], free: tuple[float, int],
-                  far: tuple[float, int, float, int], duration: float) -> None:
+                  far: tuple[float, int, float, int], duration: float,
+                  perturbed: dict[str, RunResult]) -> None:
     """results.md: the tables of the study."""
     per_step = free[0] / free[1]   # the loop without contact, per step
     rows = [["target", "steps", "smallest step [s]", "wall, no VTK [s]", "of which: frames [s]",
@@ -351,9 +391,15 @@ behind the target's centre by more than its radius: {"yes" if m['corners_behind'
 knots within {NEAR} m of the surface: {100 * m['knots_near'][-1]:.0f} %; net centre of mass
 relative to the target: {100 * m['relative_speed'][-1]:.1f} cm/s.
 
-## Cylinder primitive against the STL file of the same cylinder (64 facets)
+## Cylinder primitive against the STL file of the same cylinder ({SECTIONS} facets)
 
 {table(diff)}
+
+## The STL's differences against those of a cylinder changed by the faceting error
+
+The STL's facets lie between the cylinder's radius and {1000 * FACETING:.2f} mm inside it.
+
+{faceting_table(results, perturbed)}
 """
     (HERE / "results.md").write_text(text)
     print(text)
