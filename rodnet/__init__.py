@@ -10,3 +10,9 @@ from rodnet.scene import load_scene as load_scene
 from rodnet.scene import scene_from_toml as scene_from_toml
 
 __version__ = "0.1.0"
+
+# numba's cache is keyed by each kernel's own file only: drop cached kernels built from older
+# sources of the modules they use (rodnet.kernels.cache)
+from rodnet.kernels.cache import refresh as _refresh_kernel_cache  # noqa: E402
+
+_refresh_kernel_cache()
