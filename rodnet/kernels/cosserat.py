@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from rodnet.kernels.cosserat_strain import (
-    expand_vector, kinematics, midpoint_coefficient, reduce_velocity,
+    expand_vector, kinematics, midpoint_coefficient, reduce_velocity, rotation_stop,
     reference_strains as reference_strains, strain_matrix as strain_matrix,
     strain_rates_from_kinematics, strains as strains, strains_from_kinematics,
 )
@@ -154,7 +154,8 @@ def strain_energy(
     """Elastic strain energy of each element (§Energy): (n,). Compiled.
 
     ``Le [EA Rint(Gamma_0) + (GA2 Gamma_1^2 + GA3 Gamma_2^2 + K^T C_M K) / 2]``, with the linear
-    axial energy ``EA Gamma_0^2 / 2`` when not tension-only.
+    axial energy ``EA Gamma_0^2 / 2`` when not tension-only, plus the rotation stop's energy
+    (C52) of elements turned beyond :data:`rodnet.kernels.cosserat_strain.ROTATION_STOP`.
     """
     return cosserat_compiled.strain_energy(rest_length, reference_strain, stiffness, x, q,
                                            tension_only, kink_strain)
@@ -171,7 +172,10 @@ def strain_energy_numpy(
     """:func:`strain_energy` in NumPy."""
     eps = strains(rest_length, reference_strain, x, q)
     bulk = 0.5 * rest_length * np.sum(stiffness[:, 1:] * eps[:, 1:] ** 2, axis=1)
-    return bulk + axial_energy(eps[:, 0], stiffness[:, 0], rest_length, kink_strain, tension_only)
+    psi = kinematics(x, q)[0]
+    stop = rotation_stop(psi, rest_length, stiffness[:, 1])[0]
+    return bulk + stop + axial_energy(eps[:, 0], stiffness[:, 0], rest_length, kink_strain,
+                                      tension_only)
 
 
 def _reduced_force(psi: FloatArray, R_m: FloatArray, g: FloatArray, stress: FloatArray) -> FloatArray:
@@ -196,8 +200,11 @@ def _stress_state(rest_length, reference_strain, stiffness, tau, x, q, velocity,
     velocity9 = reduce_velocity(velocity)
     eps = strains_from_kinematics(psi, g, rest_length, reference_strain)
     eps_rate = strain_rates_from_kinematics(psi, R_m, g, velocity9, rest_length)
-    response = stress_resultants_and_moduli(stiffness, tau, eps, eps_rate, tension_only, kink_strain)
-    return (psi, R_m, g), response, velocity9
+    stress, modulus, viscous = stress_resultants_and_moduli(stiffness, tau, eps, eps_rate,
+                                                           tension_only, kink_strain)
+    stress = stress.copy()
+    stress[:, 3:] += rotation_stop(psi, rest_length, stiffness[:, 1])[1]   # (C52)
+    return (psi, R_m, g), (stress, modulus, viscous), velocity9
 
 
 def internal_force(

@@ -27,6 +27,7 @@ from numpy.typing import ArrayLike
 
 from rodnet.kernels import cosserat_strain, so3
 from rodnet.kernels.tension import REVERSED_STIFFNESS
+from rodnet.kernels.cosserat_strain import ROTATION_STOP
 from rodnet.kernels.so3 import FloatArray
 
 # rows: beta, beta'/phi (cosserat_strain.midpoint_coefficient), gamma, gamma'/phi
@@ -248,6 +249,13 @@ def _kinematics(x, q, e):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True)
+def _stop_moment_factor(phi, k):  # pragma: no cover - compiled
+    """The rotation stop (C52) as :func:`rodnet.kernels.cosserat_strain.rotation_stop`: the
+    factor ``k (phi - phi_s) / phi`` of ``psi`` in its moment, 0 while ``phi <= phi_s``."""
+    return k * (phi - ROTATION_STOP) / phi if phi > ROTATION_STOP else 0.0
+
+
+@numba.njit(cache=True)
 def _axial(e, e_rate, EA, tau, tension_only, kink):  # pragma: no cover - compiled
     """Axial force and its strain and strain-rate moduli (§Constitutive law).
 
@@ -383,6 +391,8 @@ def _state_and_force(rest_length, reference_strain, stiffness, tau, x, q, veloci
         te = tau[e]
         (N0, N1, N2, M0, M1, M2), D0, V0 = _resultants(stiffness, tau, e, eps, rate,
                                                          tension_only, kink)
+        stop = _stop_moment_factor(phi, stiffness[e, 1] * rest_length[e])   # (C52)
+        M0, M1, M2 = M0 + stop * p0, M1 + stop * p1, M2 + stop * p2
         # reduced force (_reduced_force) and its expansion (expand_vector)
         h0, h1, h2 = _cross(N0, N1, N2, g0, g1, g2)
         ph0, ph1, ph2 = _cross(p0, p1, p2, h0, h1, h2)
@@ -471,7 +481,8 @@ def _section_state_kernel(rest_length, reference_strain, stiffness, tau, x, q, v
 @numba.njit(cache=True)
 def _strain_energy_kernel(rest_length, reference_strain, stiffness, x, q, tension_only,
                           kink):  # pragma: no cover - compiled
-    """``Le [EA Rint(Gamma_0) + (GA2 Gamma_1^2 + GA3 Gamma_2^2 + K^T C_M K) / 2]`` (§Energy)."""
+    """``Le [EA Rint(Gamma_0) + (GA2 Gamma_1^2 + GA3 Gamma_2^2 + K^T C_M K) / 2]`` (§Energy)
+    plus the rotation stop's ``GA2 Le (phi - phi_s)^2 / 2`` (C52)."""
     n = rest_length.shape[0]
     energy = np.empty(n)
     for e in range(n):
@@ -483,8 +494,10 @@ def _strain_energy_kernel(rest_length, reference_strain, stiffness, x, q, tensio
         bulk = 0.0
         for k in range(1, 6):
             bulk += stiffness[e, k] * (eps[k] * eps[k])
-        energy[e] = 0.5 * Le * bulk + _axial_energy_density(eps[0], stiffness[e, 0], Le,
-                                                             tension_only, kink)
+        phi = np.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
+        excess = phi - ROTATION_STOP if phi > ROTATION_STOP else 0.0   # (C52)
+        energy[e] = (0.5 * Le * bulk + 0.5 * stiffness[e, 1] * Le * (excess * excess)
+                     + _axial_energy_density(eps[0], stiffness[e, 0], Le, tension_only, kink))
     return energy
 
 
@@ -856,6 +869,19 @@ def _tangents_kernel(psi, R_m, g, coefficients, constitutive, velocity9, inv_le,
             a, b = constitutive[e, 6 + i] * inv_le[e], constitutive[e, 12 + i] * inv_le[e]
             for j in range(9):
                 Z9[i, j] = a * B9[i, j] + b * G_u[i, j] if viscous else a * B9[i, j]
+        # the rotation stop (C52), k_s = GA2 Le: Z9[3:] += H_s B9[3:], with
+        # H_s = k_s [(1 - phi_s / phi) I + (phi_s / phi) n n^T]; its moment is in M already
+        phi = np.sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2])
+        if phi > ROTATION_STOP:
+            k_s = constitutive[e, 7] / inv_le[e]
+            ratio = ROTATION_STOP / phi
+            for i in range(3):
+                for k in range(3):
+                    h_ik = k_s * ratio * p[i] * p[k] / (phi * phi)
+                    if i == k:
+                        h_ik += k_s * (1.0 - ratio)
+                    for j in range(9):
+                        Z9[3 + i, j] += h_ik * B9[3 + k, j]
         _matmul(Q9, L9, K9)
         for i in range(9):
             for j in range(9):

@@ -26,6 +26,10 @@ _BETA_D_SERIES = np.array([1 / 192, 1 / 3840, 17 / 1720320, 31 / 92897280, 691 /
                            3202291 / 11655165643849728000])
 _SERIES_ANGLE = 0.5
 
+ROTATION_STOP = 5.0
+"""The element relative rotation ``|psi|`` [rad] beyond which the rotation stop (C52) acts."""
+
+
 
 def midpoint_coefficient(phi: FloatArray) -> tuple[FloatArray, FloatArray]:
     """``beta = tan(phi/4) / (2 phi)`` and ``beta'(phi)/phi``: (...) -> (...), (...).
@@ -67,6 +71,42 @@ def kinematics(x: FloatArray, q: FloatArray) -> tuple[FloatArray, FloatArray, Fl
     R_m = quat_to_matrix(quat_multiply(q[:, 0], quat_from_rotvec(0.5 * psi)))
     g = np.einsum("nji,nj->ni", R_m, x[:, 1] - x[:, 0])
     return psi, R_m, g
+
+
+def rotation_stop(psi: FloatArray, rest_length: FloatArray,
+                  shear_stiffness: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """The rotation stop (C52): energy, moment and its derivative of each element.
+
+    ``W_s = k_s (phi - phi_s)^2 / 2`` for ``phi = |psi| > phi_s`` (:data:`ROTATION_STOP`), with
+    ``k_s = GA2 Le`` [N m]; 0 below.
+
+    Parameters
+    ----------
+    psi : (n, 3)
+        Element relative rotations [rad].
+    rest_length, shear_stiffness : (n,)
+        ``Le`` [m] and ``GA2`` [N].
+
+    Returns
+    -------
+    energy : (n,)
+        ``W_s`` [J].
+    moment : (n, 3)
+        ``dW_s / dpsi = k_s (phi - phi_s) psi / phi`` [N m], added to the bending and torsion
+        moment ``M`` (it is parallel to ``psi``).
+    hessian : (n, 3, 3)
+        ``d moment / d psi = k_s [(1 - phi_s / phi) I + (phi_s / phi) n n^T]``, ``n = psi / phi``.
+    """
+    phi = np.linalg.norm(psi, axis=1)
+    active = phi > ROTATION_STOP
+    k = np.where(active, shear_stiffness * rest_length, 0.0)
+    safe = np.where(active, phi, 1.0)
+    excess = np.where(active, phi - ROTATION_STOP, 0.0)
+    n = psi / safe[:, None]
+    ratio = np.where(active, ROTATION_STOP / safe, 0.0)
+    hessian = k[:, None, None] * ((1.0 - ratio)[:, None, None] * np.eye(3)
+                                  + ratio[:, None, None] * n[:, :, None] * n[:, None, :])
+    return 0.5 * k * excess**2, (k * excess)[:, None] * n, hessian
 
 
 def reference_strains(rest_length: FloatArray, x: FloatArray, q: FloatArray) -> FloatArray:

@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from rodnet.kernels.cosserat_strain import expand_matrix, midpoint_coefficient, strain_operators
+from rodnet.kernels.cosserat_strain import (expand_matrix, midpoint_coefficient, rotation_stop,
+                                            strain_operators)
 from rodnet.kernels.so3 import FloatArray, dexp_inv_derivative, hat
 
 
@@ -109,7 +110,8 @@ def tangents(
     Returns
     -------
     stiffness_tangent, damping_tangent : (n, 12, 12)
-        ``K = S K9 S^T`` with ``K9 = B9^T (D B9 + D_v U9 L9) / Le + Q9 L9`` and
+        ``K = S K9 S^T`` with ``K9 = B9^T (D B9 + D_v U9 L9) / Le + Q9 L9`` (plus
+        ``B9_psi^T H_s B9_psi`` of the rotation stop (C52); ``stress`` includes its moment) and
         ``C = S (B9^T D_v B9 / Le) S^T``, ``S`` of :func:`rodnet.kernels.cosserat_strain.expand_vector`.
     """
     B9, P2 = strain_operators(psi, R_m, g)
@@ -119,5 +121,7 @@ def tangents(
     D, D_v = modulus[:, :, None] * inv_le, viscous_modulus[:, :, None] * inv_le
     # K9 as one product [B9^T, Q9] @ [Z9; L9] with Z9 = (D B9 + D_v U9 L9) / Le
     right = np.concatenate([D * B9 + D_v * (U9 @ L9), L9], axis=1)
+    # the rotation stop (C52): its moment is in ``stress``, its derivative acts on dpsi = B9[3:] r
+    right[:, 3:6] += rotation_stop(psi, rest_length, modulus[:, 1])[2] @ B9[:, 3:6]
     left = np.concatenate([np.swapaxes(B9, 1, 2), Q9], axis=2)
     return expand_matrix(left @ right), expand_matrix(left[:, :, :6] @ (D_v * B9))

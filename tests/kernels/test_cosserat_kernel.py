@@ -130,10 +130,12 @@ def test_uniform_stretch_gives_the_axial_force():
         np.testing.assert_allclose(f[:, [3, 4, 5, 9, 10, 11]], 0.0, rtol=0, atol=atol)
 
 
-@pytest.mark.parametrize("angle", [1e-9, 0.3, 2.0, 3.0])
+@pytest.mark.parametrize("angle", [1e-9, 0.3, 2.0, 3.0, 4.5, 6.0])
 def test_circular_arc_gives_uniform_curvature_and_end_moments(angle):
     """Nodes on a circle of radius Le/angle, director d1 tangent: K = angle/Le e3 and the chord
-    seen by the one-point rule is 2 sin(angle/2)/angle shorter; slack in tension-only mode."""
+    seen by the one-point rule is 2 sin(angle/2)/angle shorter; slack in tension-only mode.
+    Beyond ROTATION_STOP (5 rad) the stop (C52) adds k_s (angle - 5) to the end moments and
+    k_s (angle - 5)^2 / 2 to the energy, k_s = GA2 Le."""
     Le, EI3 = 0.7, 3.0
     stiffness = np.array([[100.0, 40.0, 40.0, 1.0, 2.0, EI3]])
     rho = Le / angle
@@ -145,11 +147,16 @@ def test_circular_arc_gives_uniform_curvature_and_end_moments(angle):
     np.testing.assert_allclose(eps[0], [2 * np.sin(angle / 2) / angle - 1.0, 0, 0, 0, 0, angle / Le],
                                atol=1e-15)
     args = (np.array([Le]), ref, stiffness, np.zeros(1), x, q, np.zeros((1, 12)), TENSION_ONLY, 1e-6)
-    M = EI3 * angle / Le
+    k_s, excess = stiffness[0, 1] * Le, max(angle - 5.0, 0.0)
+    M = EI3 * angle / Le + k_s * excess
     np.testing.assert_allclose(cosserat.internal_force(*args)[0], [0, 0, 0, 0, 0, -M, 0, 0, 0, 0, 0, M],
                                atol=1e-13 * M)
-    energy = cosserat.strain_energy(np.array([Le]), ref, stiffness, x, q, TENSION_ONLY, 1e-6)
-    np.testing.assert_allclose(energy, 0.5 * EI3 * (angle / Le) ** 2 * Le, rtol=1e-13)
+    np.testing.assert_allclose(cosserat.internal_force_numpy(*args)[0],
+                               [0, 0, 0, 0, 0, -M, 0, 0, 0, 0, 0, M], atol=1e-13 * M)
+    expected = 0.5 * EI3 * (angle / Le) ** 2 * Le + 0.5 * k_s * excess**2
+    for energy_of in (cosserat.strain_energy, cosserat.strain_energy_numpy):
+        energy = energy_of(np.array([Le]), ref, stiffness, x, q, TENSION_ONLY, 1e-6)
+        np.testing.assert_allclose(energy, expected, rtol=1e-13)
 
 
 def test_tension_only_energy_follows_the_ramp():

@@ -394,6 +394,28 @@ def test_unsupported_static_rod_fails_with_a_message(tmp_path: Path, capsys, sup
     assert len(err.strip().splitlines()) == 1
 
 
+def test_twist_beyond_the_rotation_stop(tmp_path: Path) -> None:
+    """An end moment that would twist one element by 6 rad meets the rotation stop (C52) at
+    5 rad: the element then carries ``G J phi / L + k_s (phi - 5)``, ``k_s = GA L``, and turns
+    to the ``phi`` that balances the moment (without the stop: 6 rad)."""
+    diameter, length = 0.01, 1.0
+    gj = E / (2 * (1 + NU)) * np.pi * diameter**4 / 32
+    k_s = section(diameter)["GA"] * length
+    moment = gj * 6.0 / length
+    text = rod_toml(diameter, 1, (("beam:start", "clamp"),), steps=12)
+    text = text.replace("[output]", f'[[loads]]\nnode = "beam:end"\nmoment = [{moment}, 0.0, 0.0]\n\n[output]')
+    result = run(scene_from_toml(text), tmp_path, progress=False)
+    assert result.status == "ok", result.message
+    q = result.arrays["rotations"]
+    twist = so3.rotvec_from_quat(so3.quat_multiply(so3.quat_conjugate(q[:, 0]), q[:, -1]),
+                                 shortest=False)[:, 0]
+    loads = result.arrays["time"] * moment                          # load factors 1/12 ... 1
+    expected = np.where(loads * length / gj <= 5.0, loads * length / gj,
+                        (loads + 5.0 * k_s) / (gj / length + k_s))
+    np.testing.assert_allclose(twist, expected, rtol=1e-9, atol=1e-12)
+    assert 5.0 < twist[-1] < 5.0 + 1e-4
+
+
 @pytest.mark.parametrize("supports", UNSUPPORTED.values(), ids=UNSUPPORTED.keys())
 def test_unsupported_static_rod_message_names_the_missing_support(tmp_path: Path, capsys,
                                                                   supports) -> None:
