@@ -170,9 +170,9 @@ def strain_energy_numpy(
     tension_only: bool, kink_strain: float,
 ) -> FloatArray:
     """:func:`strain_energy` in NumPy."""
-    eps = strains(rest_length, reference_strain, x, q)
+    psi, _, g = kinematics(x, q)
+    eps = strains_from_kinematics(psi, g, rest_length, reference_strain)
     bulk = 0.5 * rest_length * np.sum(stiffness[:, 1:] * eps[:, 1:] ** 2, axis=1)
-    psi = kinematics(x, q)[0]
     stop = rotation_stop(psi, rest_length, stiffness[:, 1])[0]
     return bulk + stop + axial_energy(eps[:, 0], stiffness[:, 0], rest_length, kink_strain,
                                       tension_only)

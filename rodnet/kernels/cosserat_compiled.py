@@ -249,10 +249,10 @@ def _kinematics(x, q, e):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True)
-def _stop_moment_factor(phi, k):  # pragma: no cover - compiled
-    """The rotation stop (C52) as :func:`rodnet.kernels.cosserat_strain.rotation_stop`: the
-    factor ``k (phi - phi_s) / phi`` of ``psi`` in its moment, 0 while ``phi <= phi_s``."""
-    return k * (phi - ROTATION_STOP) / phi if phi > ROTATION_STOP else 0.0
+def _stop_excess(phi):  # pragma: no cover - compiled
+    """How far [rad] the element rotation ``phi`` is past the rotation stop (C52), 0 before it,
+    as in :func:`rodnet.kernels.cosserat_strain.rotation_stop`."""
+    return phi - ROTATION_STOP if phi > ROTATION_STOP else 0.0
 
 
 @numba.njit(cache=True)
@@ -391,8 +391,10 @@ def _state_and_force(rest_length, reference_strain, stiffness, tau, x, q, veloci
         te = tau[e]
         (N0, N1, N2, M0, M1, M2), D0, V0 = _resultants(stiffness, tau, e, eps, rate,
                                                          tension_only, kink)
-        stop = _stop_moment_factor(phi, stiffness[e, 1] * rest_length[e])   # (C52)
-        M0, M1, M2 = M0 + stop * p0, M1 + stop * p1, M2 + stop * p2
+        excess = _stop_excess(phi)   # (C52): the stop's moment k_s (phi - phi_s) psi / phi
+        if excess > 0.0:
+            stop = stiffness[e, 1] * rest_length[e] * excess / phi
+            M0, M1, M2 = M0 + stop * p0, M1 + stop * p1, M2 + stop * p2
         # reduced force (_reduced_force) and its expansion (expand_vector)
         h0, h1, h2 = _cross(N0, N1, N2, g0, g1, g2)
         ph0, ph1, ph2 = _cross(p0, p1, p2, h0, h1, h2)
@@ -494,8 +496,7 @@ def _strain_energy_kernel(rest_length, reference_strain, stiffness, x, q, tensio
         bulk = 0.0
         for k in range(1, 6):
             bulk += stiffness[e, k] * (eps[k] * eps[k])
-        phi = np.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
-        excess = phi - ROTATION_STOP if phi > ROTATION_STOP else 0.0   # (C52)
+        excess = _stop_excess(np.sqrt(p0 * p0 + p1 * p1 + p2 * p2))   # (C52)
         energy[e] = (0.5 * Le * bulk + 0.5 * stiffness[e, 1] * Le * (excess * excess)
                      + _axial_energy_density(eps[0], stiffness[e, 0], Le, tension_only, kink))
     return energy

@@ -30,7 +30,6 @@ ROTATION_STOP = 5.0
 """The element relative rotation ``|psi|`` [rad] beyond which the rotation stop (C52) acts."""
 
 
-
 def midpoint_coefficient(phi: FloatArray) -> tuple[FloatArray, FloatArray]:
     """``beta = tan(phi/4) / (2 phi)`` and ``beta'(phi)/phi``: (...) -> (...), (...).
 

@@ -398,18 +398,11 @@ def test_twist_beyond_the_rotation_stop(tmp_path: Path) -> None:
     """An end moment that would twist one element by 6 rad meets the rotation stop (C52) at
     5 rad: the element then carries ``G J phi / L + k_s (phi - 5)``, ``k_s = GA L``, and turns
     to the ``phi`` that balances the moment (without the stop: 6 rad)."""
-    diameter, length = 0.01, 1.0
-    gj = E / (2 * (1 + NU)) * np.pi * diameter**4 / 32
-    k_s = section(diameter)["GA"] * length
+    gj, length = TWIST_GJ, TWIST_LENGTH
+    k_s = section(TWIST_DIAMETER)["GA"] * length
     moment = gj * 6.0 / length
-    text = rod_toml(diameter, 1, (("beam:start", "clamp"),), steps=12)
-    text = text.replace("[output]", f'[[loads]]\nnode = "beam:end"\nmoment = [{moment}, 0.0, 0.0]\n\n[output]')
-    result = run(scene_from_toml(text), tmp_path, progress=False)
-    assert result.status == "ok", result.message
-    q = result.arrays["rotations"]
-    twist = so3.rotvec_from_quat(so3.quat_multiply(so3.quat_conjugate(q[:, 0]), q[:, -1]),
-                                 shortest=False)[:, 0]
-    loads = result.arrays["time"] * moment                          # load factors 1/12 ... 1
+    _, factors, rotation = twisted_rod(tmp_path, 1, moment)
+    twist, loads = rotation[:, 0], factors * moment
     expected = np.where(loads * length / gj <= 5.0, loads * length / gj,
                         (loads + 5.0 * k_s) / (gj / length + k_s))
     np.testing.assert_allclose(twist, expected, rtol=1e-9, atol=1e-12)
@@ -424,22 +417,31 @@ def test_unsupported_static_rod_message_names_the_missing_support(tmp_path: Path
     assert not (tmp_path / "out").exists()
 
 
+TWIST_DIAMETER, TWIST_LENGTH = 0.01, 1.0
+TWIST_GJ = E / (2 * (1 + NU)) * np.pi * TWIST_DIAMETER**4 / 32
+
+
+def twisted_rod(tmp_path: Path, elements: int, moment: float):
+    """A clamped steel rod (``TWIST_DIAMETER`` x ``TWIST_LENGTH``) under an end moment about its
+    axis raised in 12 static steps: the run, the load factors (12,) and the end's rotation
+    relative to the clamp (12, 3), on the double cover, in material axes."""
+    text = rod_toml(TWIST_DIAMETER, elements, (("beam:start", "clamp"),), steps=12,
+                    length=TWIST_LENGTH)
+    text = text.replace("[output]", f'[[loads]]\nnode = "beam:end"\nmoment = [{moment}, 0.0, 0.0]\n\n[output]')
+    result = run(scene_from_toml(text), tmp_path, progress=False)
+    assert result.status == "ok", result.message
+    q = result.arrays["rotations"]                  # (frames, nodes, 4); the clamped node 0 stays
+    relative = so3.quat_multiply(so3.quat_conjugate(q[:, 0]), q[:, -1])
+    return result, result.arrays["time"], so3.rotvec_from_quat(relative, shortest=False)
+
+
 @pytest.mark.parametrize("elements", [1, 2])
 def test_twist_past_half_a_turn_per_element(tmp_path: Path, elements: int) -> None:
     """A clamped rod twisted by an end moment M turns by M L / (G J), linear in M at any angle:
     here 1.5 pi per element, where the shortest-rotation logarithm would jump to -0.5 pi and
     reverse the torque (C11: the relative rotation lives on the quaternion double cover)."""
-    diameter, length = 0.01, 1.0
-    gj = E / (2 * (1 + NU)) * np.pi * diameter**4 / 32
     angle = 1.5 * np.pi * elements
-    text = rod_toml(diameter, elements, (("beam:start", "clamp"),), steps=12)
-    text = text.replace("[output]", f'[[loads]]\nnode = "beam:end"\nmoment = [{gj * angle / length}, 0.0, 0.0]\n\n[output]')
-    result = run(scene_from_toml(text), tmp_path, progress=False)
-    assert result.status == "ok", result.message
-    q = result.arrays["rotations"]                  # (frames, nodes, 4); the clamped node 0 stays
-    relative = so3.quat_multiply(so3.quat_conjugate(q[:, 0]), q[:, -1])
-    twist = so3.rotvec_from_quat(relative, shortest=False)          # (frames, 3), material axes
-    loads = result.arrays["time"]                                   # load factors 1/12 ... 1
+    result, loads, twist = twisted_rod(tmp_path, elements, TWIST_GJ * angle / TWIST_LENGTH)
     # a quaternion repeats after 4 pi: compare the end's twist modulo that
     difference = np.mod(twist[:, 0] - loads * angle + 2 * np.pi, 4 * np.pi) - 2 * np.pi
     assert np.abs(difference).max() < 1e-8 * angle
