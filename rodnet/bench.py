@@ -275,6 +275,34 @@ def spatial_orders(study: Study, records: dict[str, dict[str, Any]]) -> list[str
     return lines
 
 
+def setting_orders(study: Study, records: dict[str, dict[str, Any]]) -> list[str]:
+    """Observed order of the max mouth area in the setting refined along one curve.
+
+    Runs of one curve whose setting is ``"<name> <value>"`` (``"safety 0.25"``, ``"tol 1e-4"``)
+    are grouped by curve and name; for three values refined by one constant ratio ``r``,
+    ``log(|A_1 - A_2| / |A_2 - A_3|) / log(r)`` is reported. With the explicit rods
+    ``safety`` scales both the step and the added rotary inertia (FORMULATION C49), so this is
+    the order of that joint refinement, not of the step alone.
+    """
+    groups: dict[tuple[str, str], dict[float, float]] = {}
+    for run in study.runs:
+        match = re.fullmatch(r"(\w+)\s+([0-9.eE+-]+)", run.setting)
+        rec = records[run.label]
+        if match and rec["summary"].get("status") == "ok":
+            values = groups.setdefault((run.curve, match.group(1)), {})
+            values[float(match.group(2))] = rec["summary"]["metrics"]["max_mouth_area"]
+    lines = []
+    for (curve, name), areas in groups.items():
+        values = sorted(areas, reverse=True)
+        for a, b, c in zip(values, values[1:], values[2:]):
+            d1, d2 = abs(areas[a] - areas[b]), abs(areas[b] - areas[c])
+            if d2 > 0 and d1 > 0 and math.isclose(a / b, b / c, rel_tol=1e-6):
+                lines.append(f"{curve}: max mouth area " + ", ".join(
+                    f"{areas[v]:.6g} m^2 at {name} {v:g}" for v in (a, b, c))
+                    + f"; observed order in {name}: {math.log(d1 / d2) / math.log(a / b):.2f}")
+    return lines
+
+
 def write_outputs(study: Study, records: dict[str, dict[str, Any]], folder: Path) -> str:
     """Write the Markdown table, the CSV and the plot; return the Markdown."""
     rows = table_rows(study, records)
@@ -283,7 +311,8 @@ def write_outputs(study: Study, records: dict[str, dict[str, Any]], folder: Path
           + "; ".join(f"{fam}: `{label}`" for fam, label in study.references.items()) + ".", "",
           "| " + " | ".join(COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
     md += ["| " + " | ".join(r) + " |" for r in rows]
-    md += ["", *[f"- {line}" for line in spatial_orders(study, records) + study.notes]]
+    md += ["", *[f"- {line}" for line in spatial_orders(study, records)
+                 + setting_orders(study, records) + study.notes]]
     text = "\n".join(md) + "\n"
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "work_precision.md").write_text(text)

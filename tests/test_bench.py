@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rodnet.bench import BenchRun, Study, errors, spatial_orders, write_outputs
+from rodnet.bench import BenchRun, Study, errors, setting_orders, spatial_orders, write_outputs
 
 
 def _record(area: float, t_max: float, dist: float, path: list[float], status: str = "ok") -> dict:
@@ -58,3 +58,20 @@ def test_orders_are_per_model_and_setting() -> None:
     assert lines[1] == "rods explicit, safety 0.5: observed order, n = 1, 2, 4: 4.00"
     assert any(line.startswith("cables, safety 0.5: max mouth area 460") for line in lines)
     assert not any("safety 0.25" in line and "order" in line for line in lines)
+
+
+def test_observed_order_in_the_setting() -> None:
+    """Areas converging as A_s = A + C s along one curve give an observed order of 1 in the
+    setting halved twice, 2 for A + C tol^2 over tenfold steps; two values only, or values not
+    refined by one constant ratio, give no order."""
+    runs = [BenchRun("rods n=2", f"safety {s:g}", "bending", ()) for s in (0.5, 0.25, 0.125)]
+    runs += [BenchRun("rods n=1", f"tol {t:g}", "bending", ()) for t in (1e-2, 1e-3, 1e-4)]
+    runs += [BenchRun("cables n=2", f"safety {s:g}", "none", ()) for s in (0.5, 0.25, 0.1)]
+    areas = ([450.0 + 4.0 * s for s in (0.5, 0.25, 0.125)] + [450.0 + 1e4 * t**2 for t in (1e-2, 1e-3, 1e-4)]
+             + [450.0, 451.0, 452.5])
+    records = {r.label: _record(a, 1.3, 15.0, [0.0, 1.0]) for r, a in zip(runs, areas)}
+    lines = setting_orders(Study(runs, {"bending": runs[2].label}, 3.0), records)
+    assert len(lines) == 2
+    assert lines[0].startswith("rods n=2: max mouth area 452 m^2 at safety 0.5, 451 m^2")
+    assert lines[0].endswith("observed order in safety: 1.00")
+    assert lines[1].endswith("observed order in tol: 2.00")

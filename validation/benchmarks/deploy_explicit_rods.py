@@ -6,11 +6,13 @@ cable/lumped runs at the same thread resolution. Every run goes through
 :func:`rodnet.bench.run_one` (own process, stored in ``results/deploy_explicit_rods/runs``, reused
 on a rerun), and the table, CSV and plot come from :func:`rodnet.bench.write_outputs`.
 
-References (the finest run of each family): threads with bending, the explicit run at a
-quarter of the stability limit (a smaller step and a quarter of the added rotary inertia);
-threads without bending, the lumped model with two segments per thread at a quarter of its
-limit. A generalized-alpha run of the same rods with their true rotary inertia
-(``error_tolerance`` 1e-3 m) is the independent check: before the orientation branch of the
+References (the finest run of each family): threads with bending, the explicit run at an
+eighth of the stability limit (against the safety 0.5 run a quarter of the step and, since the
+added rotary inertia scales with the step squared (C49), a sixteenth of that inertia);
+threads without bending, the lumped model with two segments per thread at an eighth of its
+limit. The runs at safety 0.5, 0.25 and 0.125 give the observed order in the safety factor. A
+generalized-alpha run of the same rods with their true rotary inertia (``error_tolerance``
+1e-3 m) is the independent check: before the orientation branch of the
 axial law (FORMULATION C51) it let 46 elements turn against their chords from 0.24 s on (threads
 in effect cut; largest mouth area 488.4 m^2); with it, it runs the 3 s (see the notes).
 
@@ -52,8 +54,10 @@ def study() -> Study:
         BenchRun("lumped explicit n=8", "safety 0.5", "no bending", ("model.type=lumped",) + _n(8) + _safety(0.5)),
         BenchRun("cosserat pinned explicit n=4", "safety 0.5", "bending", PINNED + _n(4) + EXPLICIT + _safety(0.5)),
         BenchRun("cosserat pinned explicit n=8", "safety 0.5", "bending", PINNED + _n(8) + EXPLICIT + _safety(0.5)),
+        BenchRun("lumped explicit n=2", "safety 0.125", "no bending", ("model.type=lumped",) + _n(2) + _safety(0.125)),
+        BenchRun("cosserat pinned explicit n=2", "safety 0.125", "bending", PINNED + _n(2) + EXPLICIT + _safety(0.125)),
     ]
-    references = {"no bending": runs[2].label, "bending": runs[4].label}
+    references = {"no bending": runs[-2].label, "bending": runs[-1].label}
     notes = ["Explicit rods: symplectic Euler with the rotary inertia scaled (C49), the axial law "
              "with the orientation branch (C51). Wall times: process wall time with the model "
              "build, one thread each (NUMBA_NUM_THREADS=1) with another heavy run on the other "
