@@ -123,7 +123,8 @@ def section_state(
     tension_only: bool, kink_strain: float,
 ) -> tuple[FloatArray, FloatArray]:
     """Strains ``[Gamma, K]`` (n, 6) and stress resultants ``[N, M]`` (n, 6) with Kelvin-Voigt
-    damping (§Strains, §Strain rates, §Constitutive law). Compiled."""
+    damping (§Strains, §Strain rates, §Constitutive law); ``M`` includes the rotation stop's
+    moment (C52) of an element turned beyond it. Compiled."""
     return cosserat_compiled.section_state(rest_length, reference_strain, stiffness, tau, x, q,
                                            velocity, tension_only, kink_strain)
 
@@ -140,7 +141,9 @@ def section_state_numpy(
     psi, R_m, g = kinematics(x, q)
     eps = strains_from_kinematics(psi, g, rest_length, reference_strain)
     rate = strain_rates_from_kinematics(psi, R_m, g, reduce_velocity(velocity), rest_length)
-    return eps, stress_resultants_numpy(stiffness, tau, eps, rate, tension_only, kink_strain)
+    stress = stress_resultants_numpy(stiffness, tau, eps, rate, tension_only, kink_strain)
+    stress[:, 3:] += rotation_stop(psi, rest_length, stiffness[:, 1])[1]
+    return eps, stress
 
 
 def strain_energy(

@@ -470,14 +470,19 @@ def _internal_force_and_tangents_kernel(rest_length, reference_strain, stiffness
 def _section_state_kernel(rest_length, reference_strain, stiffness, tau, x, q, velocity,
                           tension_only, kink, series, beta_angle, gamma_angle, strain_out,
                           stress_out):  # pragma: no cover - compiled
-    """Strains ``[Gamma, K]`` and stress resultants ``[N, M]`` (with damping) of every element."""
+    """Strains ``[Gamma, K]`` and stress resultants ``[N, M]`` (with damping and the rotation
+    stop's moment, C52) of every element."""
     for e in range(rest_length.shape[0]):
-        _, _, _, _, _, _, eps, rate, _ = _strains_and_rates(
+        psi, _, _, phi, _, _, eps, rate, _ = _strains_and_rates(
             rest_length, reference_strain, x, q, velocity, e, series, beta_angle, gamma_angle)
         stress, _, _ = _resultants(stiffness, tau, e, eps, rate, tension_only, kink)
-        for k in range(6):
+        excess = _stop_excess(phi)
+        stop = stiffness[e, 1] * rest_length[e] * excess / phi if excess > 0.0 else 0.0
+        for k in range(3):
             strain_out[e, k] = eps[k]
+            strain_out[e, 3 + k] = eps[3 + k]
             stress_out[e, k] = stress[k]
+            stress_out[e, 3 + k] = stress[3 + k] + stop * psi[k]
 
 
 @numba.njit(cache=True)

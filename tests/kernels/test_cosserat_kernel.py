@@ -134,8 +134,8 @@ def test_uniform_stretch_gives_the_axial_force():
 def test_circular_arc_gives_uniform_curvature_and_end_moments(angle):
     """Nodes on a circle of radius Le/angle, director d1 tangent: K = angle/Le e3 and the chord
     seen by the one-point rule is 2 sin(angle/2)/angle shorter; slack in tension-only mode.
-    Beyond ROTATION_STOP (5 rad) the stop (C52) adds k_s (angle - 5) to the end moments and
-    k_s (angle - 5)^2 / 2 to the energy, k_s = GA2 Le."""
+    Beyond ROTATION_STOP (5 rad) the stop (C52) adds k_s (angle - 5) to the end moments, to the
+    reported section moment and k_s (angle - 5)^2 / 2 to the energy, k_s = GA2 Le."""
     Le, EI3 = 0.7, 3.0
     stiffness = np.array([[100.0, 40.0, 40.0, 1.0, 2.0, EI3]])
     rho = Le / angle
@@ -153,6 +153,8 @@ def test_circular_arc_gives_uniform_curvature_and_end_moments(angle):
                                atol=1e-13 * M)
     np.testing.assert_allclose(cosserat.internal_force_numpy(*args)[0],
                                [0, 0, 0, 0, 0, -M, 0, 0, 0, 0, 0, M], atol=1e-13 * M)
+    for state_of in (cosserat.section_state, cosserat.section_state_numpy):  # reported moment
+        np.testing.assert_allclose(state_of(*args)[1][0, 3:], [0, 0, M], atol=1e-13 * M)
     expected = 0.5 * EI3 * (angle / Le) ** 2 * Le + 0.5 * k_s * excess**2
     for energy_of in (cosserat.strain_energy, cosserat.strain_energy_numpy):
         energy = energy_of(np.array([Le]), ref, stiffness, x, q, TENSION_ONLY, 1e-6)
