@@ -252,7 +252,8 @@ def spatial_orders(study: Study, records: dict[str, dict[str, Any]]) -> list[str
     """Observed spatial order of the max mouth area of every model refined in elements per
     thread: runs whose curve ends in ``n=<elements>`` are grouped by the rest of the curve name
     (``"cosserat pinned explicit n=4"``: ``"cosserat pinned explicit"``) and by setting, and
-    ``log2(|A_n - A_2n| / |A_2n - A_4n|)`` is reported for successive halvings."""
+    ``log2(|A_n - A_2n| / |A_2n - A_4n|)`` is reported for successive halvings (none when the
+    two differences differ in sign: not monotone)."""
     groups: dict[tuple[str, str], dict[int, float]] = {}
     for run in study.runs:
         match = re.fullmatch(r"(.*?)\s*n=(\d+)", run.curve)
@@ -268,11 +269,22 @@ def spatial_orders(study: Study, records: dict[str, dict[str, Any]]) -> list[str
         lines.append(f"{model}, {setting}: max mouth area "
                      + ", ".join(f"{areas[n]:.6g} m^2 at n = {n}" for n in ns))
         for a, b, c in zip(ns, ns[1:], ns[2:]):
-            d1, d2 = abs(areas[a] - areas[b]), abs(areas[b] - areas[c])
-            if d2 > 0 and b == 2 * a and c == 2 * b:
+            if b == 2 * a and c == 2 * b:
                 lines.append(f"{model}, {setting}: observed order, n = {a}, {b}, {c}: "
-                             f"{math.log2(d1 / d2):.2f}")
+                             + _order(areas[a], areas[b], areas[c], 2.0))
     return lines
+
+
+def _order(a1: float, a2: float, a3: float, ratio: float) -> str:
+    """``log(|a1 - a2| / |a2 - a3|) / log(ratio)`` for a quantity refined twice by ``ratio``;
+    when the two differences differ in sign the sequence is not yet converging monotonically
+    and no order is given."""
+    d1, d2 = a1 - a2, a2 - a3
+    if d1 * d2 < 0.0:
+        return f"none, not monotone (differences {d1:+.3g}, {d2:+.3g} m^2)"
+    if d2 == 0.0 or d1 == 0.0:
+        return "none, a difference is zero"
+    return f"{math.log(d1 / d2) / math.log(ratio):.2f}"
 
 
 def setting_orders(study: Study, records: dict[str, dict[str, Any]]) -> list[str]:
@@ -280,7 +292,8 @@ def setting_orders(study: Study, records: dict[str, dict[str, Any]]) -> list[str
 
     Runs of one curve whose setting is ``"<name> <value>"`` (``"safety 0.25"``, ``"tol 1e-4"``)
     are grouped by curve and name; for three values refined by one constant ratio ``r``,
-    ``log(|A_1 - A_2| / |A_2 - A_3|) / log(r)`` is reported. With the explicit rods
+    ``log(|A_1 - A_2| / |A_2 - A_3|) / log(r)`` is reported (none when the two differences
+    differ in sign: not monotone). With the explicit rods
     ``safety`` scales both the step and the added rotary inertia (FORMULATION C49), so this is
     the order of that joint refinement, not of the step alone.
     """
@@ -295,11 +308,10 @@ def setting_orders(study: Study, records: dict[str, dict[str, Any]]) -> list[str
     for (curve, name), areas in groups.items():
         values = sorted(areas, reverse=True)
         for a, b, c in zip(values, values[1:], values[2:]):
-            d1, d2 = abs(areas[a] - areas[b]), abs(areas[b] - areas[c])
-            if d2 > 0 and d1 > 0 and math.isclose(a / b, b / c, rel_tol=1e-6):
+            if math.isclose(a / b, b / c, rel_tol=1e-6):
                 lines.append(f"{curve}: max mouth area " + ", ".join(
                     f"{areas[v]:.6g} m^2 at {name} {v:g}" for v in (a, b, c))
-                    + f"; observed order in {name}: {math.log(d1 / d2) / math.log(a / b):.2f}")
+                    + f"; observed order in {name}: " + _order(areas[a], areas[b], areas[c], a / b))
     return lines
 
 

@@ -62,16 +62,27 @@ def test_orders_are_per_model_and_setting() -> None:
 
 def test_observed_order_in_the_setting() -> None:
     """Areas converging as A_s = A + C s along one curve give an observed order of 1 in the
-    setting halved twice, 2 for A + C tol^2 over tenfold steps; two values only, or values not
-    refined by one constant ratio, give no order."""
+    setting halved twice, 2 for A + C tol^2 over tenfold steps; values not refined by one
+    constant ratio give no line, differences of opposite sign no order."""
     runs = [BenchRun("rods n=2", f"safety {s:g}", "bending", ()) for s in (0.5, 0.25, 0.125)]
     runs += [BenchRun("rods n=1", f"tol {t:g}", "bending", ()) for t in (1e-2, 1e-3, 1e-4)]
     runs += [BenchRun("cables n=2", f"safety {s:g}", "none", ()) for s in (0.5, 0.25, 0.1)]
+    runs += [BenchRun("cables n=4", f"safety {s:g}", "none", ()) for s in (0.5, 0.25, 0.125)]
     areas = ([450.0 + 4.0 * s for s in (0.5, 0.25, 0.125)] + [450.0 + 1e4 * t**2 for t in (1e-2, 1e-3, 1e-4)]
-             + [450.0, 451.0, 452.5])
+             + [450.0, 451.0, 452.5] + [450.0, 451.0, 450.5])
     records = {r.label: _record(a, 1.3, 15.0, [0.0, 1.0]) for r, a in zip(runs, areas)}
     lines = setting_orders(Study(runs, {"bending": runs[2].label}, 3.0), records)
-    assert len(lines) == 2
+    assert len(lines) == 3
     assert lines[0].startswith("rods n=2: max mouth area 452 m^2 at safety 0.5, 451 m^2")
     assert lines[0].endswith("observed order in safety: 1.00")
     assert lines[1].endswith("observed order in tol: 2.00")
+    assert lines[2].endswith("observed order in safety: none, not monotone (differences -1, +0.5 m^2)")
+
+
+def test_no_spatial_order_when_not_monotone() -> None:
+    """455.19, 454.86, 455.97 (the pinned rods at n = 2, 4, 8): the differences change sign."""
+    runs = [BenchRun(f"rods n={n}", "safety 0.5", "bending", ()) for n in (2, 4, 8)]
+    records = {r.label: _record(a, 1.3, 15.0, [0.0, 1.0]) for r, a in zip(runs, (455.19, 454.86, 455.97))}
+    lines = spatial_orders(Study(runs, {"bending": runs[0].label}, 3.0), records)
+    assert lines[-1] == ("rods, safety 0.5: observed order, n = 2, 4, 8: none, not monotone "
+                         "(differences +0.33, -1.11 m^2)")
