@@ -293,9 +293,9 @@ def setting_orders(study: Study, records: dict[str, dict[str, Any]]) -> list[str
     Runs of one curve whose setting is ``"<name> <value>"`` (``"safety 0.25"``, ``"tol 1e-4"``)
     are grouped by curve and name; for three values refined by one constant ratio ``r``,
     ``log(|A_1 - A_2| / |A_2 - A_3|) / log(r)`` is reported (none when the two differences
-    differ in sign: not monotone). With the explicit rods
-    ``safety`` scales both the step and the added rotary inertia (FORMULATION C49), so this is
-    the order of that joint refinement, not of the step alone.
+    differ in sign: not monotone). With the explicit rods ``safety`` scales both the step and
+    the added rotary inertia (FORMULATION C49), so this is the order of that joint refinement,
+    not of the step alone.
     """
     groups: dict[tuple[str, str], dict[float, float]] = {}
     for run in study.runs:
