@@ -89,6 +89,8 @@ class Study:
     references: dict[str, str]
     duration: float
     notes: list[str] = field(default_factory=list)
+    scene: str = "the reference deployment"
+    """What the runs simulate, for the table's title."""
 
 
 LUMPED = ("model.type=lumped",)
@@ -318,7 +320,7 @@ def setting_orders(study: Study, records: dict[str, dict[str, Any]]) -> list[str
 def write_outputs(study: Study, records: dict[str, dict[str, Any]], folder: Path) -> str:
     """Write the Markdown table, the CSV and the plot; return the Markdown."""
     rows = table_rows(study, records)
-    md = ["# Work-precision study: the reference deployment", "",
+    md = [f"# Work-precision study: {study.scene}", "",
           f"{study.duration:g} s simulated. Errors against the reference of each family: "
           + "; ".join(f"{fam}: `{label}`" for fam, label in study.references.items()) + ".", "",
           "| " + " | ".join(COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
@@ -359,7 +361,7 @@ def _plot(study: Study, records: dict[str, dict[str, Any]], path: Path) -> None:
         ax.loglog(*zip(*points), "o-", label=curve)
     ax.set_xlabel("error in max mouth area [%]")
     ax.set_ylabel("wall time [s]")
-    ax.set_title("Reference deployment: cost against accuracy")
+    ax.set_title(f"{study.scene[0].upper()}{study.scene[1:]}: cost against accuracy")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
