@@ -13,9 +13,9 @@ threads without bending, the lumped model with two segments per thread at an eig
 limit. The runs at safety 0.5, 0.25 and 0.125 show the convergence in the safety factor (an
 observed order where it is monotone). Generalized-alpha runs of the same rods with their true
 rotary inertia (``error_tolerance`` 1e-3 and 3e-3 m, run by hand) are the independent check:
-before the orientation branch of the axial law (FORMULATION C51) they let 46 elements turn
-against their chords from 0.24 s on (threads in effect cut; largest mouth area 488.4 m^2); with
-it they run the 3 s (see the notes).
+before the orientation branch of the axial law (FORMULATION C51) the 1e-3 m run let 46
+elements turn against their chords from 0.24 s on (threads in effect cut; largest mouth area
+488.4 m^2); with it both run the 3 s (see the notes).
 
 Usage: ``python validation/benchmarks/deploy_explicit_rods.py``
 """
