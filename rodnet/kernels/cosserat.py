@@ -138,11 +138,8 @@ def section_state_numpy(
     tension_only: bool, kink_strain: float,
 ) -> tuple[FloatArray, FloatArray]:
     """:func:`section_state` in NumPy."""
-    psi, R_m, g = kinematics(x, q)
-    eps = strains_from_kinematics(psi, g, rest_length, reference_strain)
-    rate = strain_rates_from_kinematics(psi, R_m, g, reduce_velocity(velocity), rest_length)
-    stress = stress_resultants_numpy(stiffness, tau, eps, rate, tension_only, kink_strain)
-    stress[:, 3:] += rotation_stop(psi, rest_length, stiffness[:, 1])[1]
+    _, eps, (stress, _, _), _ = _stress_state(rest_length, reference_strain, stiffness, tau, x, q,
+                                              velocity, tension_only, kink_strain)
     return eps, stress
 
 
@@ -198,7 +195,8 @@ def _reduced_force(psi: FloatArray, R_m: FloatArray, g: FloatArray, stress: Floa
 
 def _stress_state(rest_length, reference_strain, stiffness, tau, x, q, velocity, tension_only,
                   kink_strain):
-    """Kinematics ``(psi, R_m, g)``, the constitutive response and the chord-reduced velocity."""
+    """Kinematics ``(psi, R_m, g)``, the strains, the constitutive response (the stress with the
+    rotation stop's moment, C52) and the chord-reduced velocity."""
     psi, R_m, g = kinematics(x, q)
     velocity9 = reduce_velocity(velocity)
     eps = strains_from_kinematics(psi, g, rest_length, reference_strain)
@@ -207,7 +205,7 @@ def _stress_state(rest_length, reference_strain, stiffness, tau, x, q, velocity,
                                                            tension_only, kink_strain)
     stress = stress.copy()
     stress[:, 3:] += rotation_stop(psi, rest_length, stiffness[:, 1])[1]   # (C52)
-    return (psi, R_m, g), (stress, modulus, viscous), velocity9
+    return (psi, R_m, g), eps, (stress, modulus, viscous), velocity9
 
 
 def internal_force(
@@ -237,7 +235,7 @@ def internal_force_numpy(
     tension_only: bool, kink_strain: float,
 ) -> FloatArray:
     """:func:`internal_force` in NumPy."""
-    kinematics_, (stress, _, _), _ = _stress_state(
+    kinematics_, _, (stress, _, _), _ = _stress_state(
         rest_length, reference_strain, stiffness, tau, x, q, velocity, tension_only, kink_strain)
     return expand_vector(_reduced_force(*kinematics_, stress))
 
@@ -280,7 +278,7 @@ def internal_force_and_tangents_numpy(
     tension_only: bool, kink_strain: float,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """:func:`internal_force_and_tangents` in NumPy (no compilation)."""
-    kinematics_, (stress, modulus, viscous_modulus), velocity9 = _stress_state(
+    kinematics_, _, (stress, modulus, viscous_modulus), velocity9 = _stress_state(
         rest_length, reference_strain, stiffness, tau, x, q, velocity, tension_only, kink_strain)
     force = expand_vector(_reduced_force(*kinematics_, stress))
     return (force, *tangents(*kinematics_, stress, modulus, viscous_modulus, velocity9,

@@ -358,9 +358,12 @@ def _strains_and_rates(rest_length, reference_strain, x, q, velocity, e, series,
 
 
 @numba.njit(cache=True)
-def _resultants(stiffness, tau, e, eps, rate, tension_only, kink):  # pragma: no cover - compiled
+def _resultants(stiffness, tau, rest_length, e, eps, rate, psi, phi, tension_only,
+                kink):  # pragma: no cover - compiled
     """Stress resultants ``(N0, N1, N2, M0, M1, M2)`` of element ``e`` with the axial strain and
-    strain-rate moduli (:func:`rodnet.kernels.cosserat.stress_resultants_and_moduli`)."""
+    strain-rate moduli (:func:`rodnet.kernels.cosserat.stress_resultants_and_moduli`); ``M``
+    includes the rotation stop's moment ``k_s (phi - phi_s) psi / phi`` (C52) of an element turned
+    by ``phi = |psi|`` beyond it."""
     te = tau[e]
     N0, D0, V0 = _axial(eps[0], rate[0], stiffness[e, 0], te, tension_only, kink)
     N1 = stiffness[e, 1] * eps[1] + te * stiffness[e, 1] * rate[1]
@@ -368,6 +371,10 @@ def _resultants(stiffness, tau, e, eps, rate, tension_only, kink):  # pragma: no
     M0 = stiffness[e, 3] * eps[3] + te * stiffness[e, 3] * rate[3]
     M1 = stiffness[e, 4] * eps[4] + te * stiffness[e, 4] * rate[4]
     M2 = stiffness[e, 5] * eps[5] + te * stiffness[e, 5] * rate[5]
+    excess = _stop_excess(phi)
+    if excess > 0.0:
+        stop = stiffness[e, 1] * rest_length[e] * excess / phi
+        M0, M1, M2 = M0 + stop * psi[0], M1 + stop * psi[1], M2 + stop * psi[2]
     return (N0, N1, N2, M0, M1, M2), D0, V0
 
 
@@ -389,12 +396,8 @@ def _state_and_force(rest_length, reference_strain, stiffness, tau, x, q, veloci
          ((vd0, vd1, vd2), (a0, a1, a2), (b0, b1, b2))) = _strains_and_rates(
             rest_length, reference_strain, x, q, velocity, e, series, beta_angle, gamma_angle)
         te = tau[e]
-        (N0, N1, N2, M0, M1, M2), D0, V0 = _resultants(stiffness, tau, e, eps, rate,
-                                                         tension_only, kink)
-        excess = _stop_excess(phi)   # (C52): the stop's moment k_s (phi - phi_s) psi / phi
-        if excess > 0.0:
-            stop = stiffness[e, 1] * rest_length[e] * excess / phi
-            M0, M1, M2 = M0 + stop * p0, M1 + stop * p1, M2 + stop * p2
+        (N0, N1, N2, M0, M1, M2), D0, V0 = _resultants(
+            stiffness, tau, rest_length, e, eps, rate, (p0, p1, p2), phi, tension_only, kink)
         # reduced force (_reduced_force) and its expansion (expand_vector)
         h0, h1, h2 = _cross(N0, N1, N2, g0, g1, g2)
         ph0, ph1, ph2 = _cross(p0, p1, p2, h0, h1, h2)
@@ -475,14 +478,11 @@ def _section_state_kernel(rest_length, reference_strain, stiffness, tau, x, q, v
     for e in range(rest_length.shape[0]):
         psi, _, _, phi, _, _, eps, rate, _ = _strains_and_rates(
             rest_length, reference_strain, x, q, velocity, e, series, beta_angle, gamma_angle)
-        stress, _, _ = _resultants(stiffness, tau, e, eps, rate, tension_only, kink)
-        excess = _stop_excess(phi)
-        stop = stiffness[e, 1] * rest_length[e] * excess / phi if excess > 0.0 else 0.0
-        for k in range(3):
+        stress, _, _ = _resultants(stiffness, tau, rest_length, e, eps, rate, psi, phi,
+                                   tension_only, kink)
+        for k in range(6):
             strain_out[e, k] = eps[k]
-            strain_out[e, 3 + k] = eps[3 + k]
             stress_out[e, k] = stress[k]
-            stress_out[e, 3 + k] = stress[3 + k] + stop * psi[k]
 
 
 @numba.njit(cache=True)
