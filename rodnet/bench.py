@@ -14,6 +14,12 @@ Error measures (all against the family's reference):
 - ``distance_at_max``: absolute error [m] of the distance travelled at that time;
 - ``com_path``: largest difference [m] of the net's centre-of-mass distance over all frames.
 
+Below the table: the observed order of the largest mouth area in elements per thread and in
+the setting (where it is monotone), what a launch 1e-9 faster or slower changes (sensitivity
+runs, :func:`perturbed`: the floor below which two runs cannot be told apart), and the observed
+orders of the mouth-area and centre-of-mass histories up to a few times and over the whole run
+(:func:`history_orders`), differences at or below the floor starred.
+
 Outputs in the chosen folder: ``work_precision.md`` (Markdown table), ``work_precision.csv``,
 ``work_precision.png`` (wall time against the max-mouth-area error, one curve per model) and
 ``runs/<label>.json`` with every run's summary (a rerun skips runs already there, so an
@@ -75,6 +81,9 @@ class BenchRun:
     setting: str
     family: str
     overrides: tuple[str, ...]
+    twin: str = ""
+    """Label of the run this one repeats with a perturbed launch (a sensitivity run, made by
+    :func:`perturbed`); empty for an ordinary run."""
 
     @property
     def label(self) -> str:
@@ -91,6 +100,31 @@ class Study:
     notes: list[str] = field(default_factory=list)
     scene: str = "the reference deployment"
     """What the runs simulate, for the table's title."""
+    order_windows: tuple[float, ...] = ()
+    """Times [s] up to which :func:`history_orders` also compares the histories (the whole run
+    is always compared)."""
+
+
+DEMO_LAUNCH_SPEED = 20.0
+"""``net.launch_speed`` [m/s] of the reference deployment (rodnet/data/deploy_reference.toml)."""
+
+
+def perturbed(run: BenchRun, relative: float) -> BenchRun:
+    """``run`` with its corner masses launched ``1 + relative`` times as fast.
+
+    Its difference from ``run`` is not a discretisation error: it measures how much the
+    deployment amplifies a perturbation far below any modelling or numerical error (a relative
+    1e-9 is 2e-8 m/s at 20 m/s), the floor below which two runs cannot be told apart. The
+    launch speed is the run's own ``net.launch_speed`` override, else the reference
+    deployment's.
+    """
+    speed = DEMO_LAUNCH_SPEED
+    for item in run.overrides:
+        if item.startswith("net.launch_speed="):
+            speed = float(item.split("=", 1)[1])
+    return BenchRun(run.curve, f"{run.setting}, launch speed {relative:+.0e}", run.family,
+                    run.overrides + (f"net.launch_speed={speed * (1.0 + relative)!r}",),
+                    twin=run.label)
 
 
 LUMPED = ("model.type=lumped",)
@@ -138,10 +172,15 @@ def default_study(quick: bool = False) -> Study:
             runs.append(BenchRun(f"cosserat explicit n={n}", f"safety {safety:g}", "bending",
                                  base + ROD + _n(n) + ("simulation.integrator=explicit",
                                                        f"simulation.explicit_safety={safety:g}")))
+    # sensitivity runs: the explicit runs at safety 0.5 (lumped, rods with two elements per
+    # thread) launched 1e-9 faster and slower
+    twins = [run for run in runs if run.setting == "safety 0.5"
+             and run.curve in ("lumped explicit", "cosserat explicit n=2")]
+    runs += [perturbed(run, relative) for run in twins for relative in (1e-9, -1e-9)]
     finest_n = 2 if quick else 8
     references = {"no bending": BenchRun("lumped rk45", "rtol 1e-8", "", ()).label,
                   "bending": BenchRun(f"cosserat n={finest_n}", f"tol {tolerances[-1]:g}", "", ()).label}
-    return Study(runs, references, duration)
+    return Study(runs, references, duration, order_windows=(0.1, 0.3) if quick else (0.2, 0.5, 1.3))
 
 
 GRACE = 120.0
@@ -260,7 +299,7 @@ def spatial_orders(study: Study, records: dict[str, dict[str, Any]]) -> list[str
     for run in study.runs:
         match = re.fullmatch(r"(.*?)\s*n=(\d+)", run.curve)
         rec = records[run.label]
-        if match and rec["summary"].get("status") == "ok":
+        if match and rec["summary"].get("status") == "ok" and not run.twin:
             areas = groups.setdefault((match.group(1), run.setting), {})
             areas[int(match.group(2))] = rec["summary"]["metrics"]["max_mouth_area"]
     lines = []
@@ -317,6 +356,133 @@ def setting_orders(study: Study, records: dict[str, dict[str, Any]]) -> list[str
     return lines
 
 
+def history_difference(a: dict[str, Any], b: dict[str, Any], key: str,
+                       until: float = math.inf) -> float:
+    """Largest ``|a - b|`` of the series ``key`` (``"mouth_area"`` [m^2], ``"distance"`` [m])
+    over the frames the two runs share with time <= ``until`` [s]; nan when either run did not
+    complete."""
+    if any(r["summary"].get("status") != "ok" or not {key, "time"} <= r.get("series", {}).keys()
+           for r in (a, b)):
+        return math.nan
+    k = min(len(a["series"][key]), len(b["series"][key]))
+    t = np.asarray(a["series"]["time"][:k])
+    keep = t <= until * (1.0 + 1e-9)
+    d = np.abs(np.asarray(a["series"][key][:k]) - np.asarray(b["series"][key][:k]))[keep]
+    return float(np.max(d, initial=0.0))
+
+
+HISTORIES = (("mouth_area", "mouth-area history", "m^2"), ("distance", "centre-of-mass distance", "m"))
+
+
+def _windows(study: Study) -> list[float]:
+    return [w for w in sorted(study.order_windows) if w < study.duration] + [study.duration]
+
+
+def sensitivity(study: Study, records: dict[str, dict[str, Any]]) -> tuple[list[str], dict]:
+    """What a perturbed launch changes, per sensitivity run (:func:`perturbed`).
+
+    Returns the table's lines and the floor: ``{(family, key, window): difference}``, the
+    largest difference over the family's sensitivity runs of the history ``key`` up to
+    ``window``. Two runs of that family whose histories differ by no more than the floor are
+    not resolved from each other.
+    """
+    lines: list[str] = []
+    floor: dict[tuple[str, str, float], float] = {}
+    for run in study.runs:
+        rec, twin = records.get(run.label), records.get(run.twin)
+        if not run.twin or rec is None or twin is None:
+            continue
+        if rec["summary"].get("status") != "ok" or twin["summary"].get("status") != "ok":
+            lines.append(f"sensitivity, {run.curve}, {run.setting}: not available (a run failed)")
+            continue
+        m, m0 = rec["summary"]["metrics"], twin["summary"]["metrics"]
+        da = m["max_mouth_area"] - m0["max_mouth_area"]
+        parts = [f"largest mouth area {da:+.3g} m^2 ({100 * da / m0['max_mouth_area']:+.2g} %), "
+                 f"its time {m['time_of_max_mouth_area'] - m0['time_of_max_mouth_area']:+.3g} s"]
+        for key, name, unit in HISTORIES:
+            values = []
+            for w in _windows(study):
+                d = history_difference(rec, twin, key, w)
+                values.append(d)
+                slot = (run.family, key, w)
+                floor[slot] = max(floor.get(slot, 0.0), d)
+            parts.append(f"{name} up to " + ", ".join(f"{d:.3g}" for d in values) + f" {unit}")
+        when = ", ".join(f"{w:g}" for w in _windows(study))
+        lines.append(f"sensitivity, {run.curve}, {run.setting} (against the unperturbed run): "
+                     + "; ".join(parts) + f" (by t = {when} s)")
+    return lines, floor
+
+
+def _sequences(study: Study, records: dict[str, dict[str, Any]]) -> list[tuple[str, float, list[str]]]:
+    """Runs refined three or more times by one ratio: ``(title, ratio, labels)``, coarsest
+    first; in elements per thread (curves ending in ``n=<n>``, one setting) and in the setting
+    (``"<name> <value>"`` along one curve). Sensitivity runs and failed runs are left out."""
+    by_n: dict[tuple[str, str], dict[float, str]] = {}
+    by_setting: dict[tuple[str, str], dict[float, str]] = {}
+    for run in study.runs:
+        if run.twin or records.get(run.label, {}).get("summary", {}).get("status") != "ok":
+            continue
+        match = re.fullmatch(r"(.*?)\s*n=(\d+)", run.curve)
+        if match:
+            by_n.setdefault((match.group(1), run.setting), {})[float(match.group(2))] = run.label
+        match = re.fullmatch(r"(\w+)\s+([0-9.eE+-]+)", run.setting)
+        if match:
+            by_setting.setdefault((run.curve, match.group(1)), {})[float(match.group(2))] = run.label
+    out = []
+    for groups, name, increasing in ((by_n, "n", True), (by_setting, None, False)):
+        for (head, tail), members in groups.items():
+            values = sorted(members, reverse=not increasing)
+            chain = values[:1]
+            for v in values[1:]:  # the longest run of one ratio from the coarsest value
+                if len(chain) == 1 or math.isclose(v / chain[-1], chain[1] / chain[0], rel_tol=1e-6):
+                    chain.append(v)
+            if len(chain) < 3:
+                continue
+            title = (f"{head}, {tail}, n = " if name else f"{head}, {tail} = ") + \
+                ", ".join(f"{v:g}" for v in chain)
+            out.append((title, chain[1] / chain[0], [members[v] for v in chain]))
+    return out
+
+
+def history_orders(study: Study, records: dict[str, dict[str, Any]]) -> list[str]:
+    """Observed orders of the mouth-area and centre-of-mass histories under refinement.
+
+    For runs refined by a ratio ``r`` (:func:`_sequences`), ``D_i`` is the largest difference
+    between the histories of runs ``i`` and ``i + 1`` up to a window (each of
+    ``study.order_windows`` and the whole run), and ``log(D_i / D_i+1) / log(r)`` the observed
+    order (r < 1 for a setting that shrinks, so the order is positive when the differences
+    shrink). Unlike the largest mouth area, a largest difference of histories has no sign to
+    change. Where the family has sensitivity runs, a difference not above their difference in
+    the same window (the floor) is starred and no order is taken from it.
+    """
+    _, floor = sensitivity(study, records)
+    lines = []
+    for title, ratio, labels in _sequences(study, records):
+        family = next(r.family for r in study.runs if r.label == labels[0])
+        for w in _windows(study):
+            parts = []
+            for key, name, unit in HISTORIES:
+                ds = [history_difference(records[a], records[b], key, w)
+                      for a, b in zip(labels, labels[1:])]
+                if any(math.isnan(d) for d in ds):  # a run without histories
+                    continue
+                f = floor.get((family, key, w))
+                marks = ["*" if f is not None and d <= f else "" for d in ds]
+                orders = ["-" if marks[i + 1] or ds[i + 1] == 0.0 or marks[i]
+                          else f"{math.log(ds[i] / ds[i + 1]) / math.log(max(ratio, 1.0 / ratio)):.2f}"
+                          for i in range(len(ds) - 1)]
+                parts.append(f"{name} " + ", ".join(f"{d:.3g}{m}" for d, m in zip(ds, marks))
+                             + f" {unit} (orders " + ", ".join(orders) + ")")
+            span = "the whole run" if w >= study.duration else f"t <= {w:g} s"
+            if parts:
+                lines.append(f"{title}, {span}: differences of successive runs: "
+                             + "; ".join(parts))
+    if floor and lines:
+        lines.append("*: not above the difference the sensitivity runs make in the same window "
+                     "(the floor); no order is taken from it.")
+    return lines
+
+
 def write_outputs(study: Study, records: dict[str, dict[str, Any]], folder: Path) -> str:
     """Write the Markdown table, the CSV and the plot; return the Markdown."""
     rows = table_rows(study, records)
@@ -326,7 +492,8 @@ def write_outputs(study: Study, records: dict[str, dict[str, Any]], folder: Path
           "| " + " | ".join(COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
     md += ["| " + " | ".join(r) + " |" for r in rows]
     md += ["", *[f"- {line}" for line in spatial_orders(study, records)
-                 + setting_orders(study, records) + study.notes]]
+                 + setting_orders(study, records) + sensitivity(study, records)[0]
+                 + history_orders(study, records) + study.notes]]
     text = "\n".join(md) + "\n"
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "work_precision.md").write_text(text)
@@ -351,7 +518,7 @@ def _plot(study: Study, records: dict[str, dict[str, Any]], path: Path) -> None:
     for run in study.runs:
         rec = records[run.label]
         ref = records.get(study.references.get(run.family, ""))
-        if ref is None or rec["run"]["curve"] is None or run.label == study.references.get(run.family):
+        if ref is None or run.twin or run.label == study.references.get(run.family):
             continue
         e = errors(rec, ref)["max_mouth_area"]
         if np.isfinite(e) and e > 0:

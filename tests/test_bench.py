@@ -7,7 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rodnet.bench import BenchRun, Study, errors, setting_orders, spatial_orders, write_outputs
+from rodnet.bench import (BenchRun, Study, errors, history_orders, perturbed, sensitivity, setting_orders,
+                          spatial_orders, write_outputs)
 
 
 def _record(area: float, t_max: float, dist: float, path: list[float], status: str = "ok") -> dict:
@@ -86,3 +87,52 @@ def test_no_spatial_order_when_not_monotone() -> None:
     lines = spatial_orders(Study(runs, {"bending": runs[0].label}, 3.0), records)
     assert lines[-1] == ("rods, safety 0.5: observed order, n = 2, 4, 8: none, not monotone "
                          "(differences +0.33, -1.11 m^2)")
+
+
+def _history_record(area: np.ndarray, distance: np.ndarray, time: np.ndarray) -> dict:
+    rec = _record(float(area.max()), float(time[np.argmax(area)]), 1.0, distance.tolist())
+    rec["series"].update(time=time.tolist(), mouth_area=area.tolist())
+    return rec
+
+
+def test_perturbed_launch_speed() -> None:
+    """A sensitivity run launches 1 + relative times as fast as its twin (the run's own launch
+    speed when it sets one, else the reference deployment's 20 m/s) and keeps its other
+    overrides."""
+    run = BenchRun("lumped n=2", "safety 0.5", "none", ("model.type=lumped",))
+    twin = perturbed(run, 1e-9)
+    assert twin.twin == run.label and twin.label != run.label and twin.family == "none"
+    assert twin.overrides[0] == "model.type=lumped"
+    assert float(twin.overrides[-1].split("=")[1]) == pytest.approx(20.0 * (1 + 1e-9), rel=1e-15)
+    slow = perturbed(BenchRun("q", "safety 0.5", "none", ("net.launch_speed=10.0",)), -1e-9)
+    assert float(slow.overrides[-1].split("=")[1]) == pytest.approx(10.0 * (1 - 1e-9), rel=1e-15)
+    assert perturbed(run, -1e-9).label != twin.label
+
+
+def test_history_orders_and_the_sensitivity_floor() -> None:
+    """Histories converging as A_n(t) = A(t) + t^2 / n^2 (distance t / n) give an order of 2 in
+    every window; a sensitivity run that differs from its twin by more than the finest
+    difference stars it and takes no order from it; sensitivity runs stay out of the orders."""
+    t = np.linspace(0.0, 1.0, 101)
+    runs = [BenchRun(f"rods n={n}", "safety 0.5", "bending", ()) for n in (1, 2, 4, 8)]
+    records = {r.label: _history_record(400.0 + 50.0 * t + t**2 / n**2, t / n, t)
+               for r, n in zip(runs, (1, 2, 4, 8))}
+    study = Study(runs, {"bending": runs[-1].label}, 1.0, order_windows=(0.5,))
+    lines = history_orders(study, records)
+    assert len(lines) == 2 and "*" not in "".join(lines)
+    assert lines[0].startswith("rods, safety 0.5, n = 1, 2, 4, 8, t <= 0.5 s:")
+    assert "mouth-area history 0.188, 0.0469, 0.0117 m^2 (orders 2.00, 2.00)" in lines[0]
+    assert "centre-of-mass distance 0.5, 0.25, 0.125 m (orders 1.00, 1.00)" in lines[1]
+    # a twin of n = 2 whose area differs by 0.06 t^6: above the n = 4 -> 8 difference at t = 1
+    twin = perturbed(runs[1], 1e-9)
+    records[twin.label] = _history_record(400.0 + 50.0 * t + t**2 / 4 + 0.06 * t**6, t / 2, t)
+    study.runs.append(twin)
+    text, floor = sensitivity(study, records)
+    assert floor[("bending", "mouth_area", 1.0)] == pytest.approx(0.06)
+    assert floor[("bending", "distance", 1.0)] == 0.0
+    assert "largest mouth area +0.06 m^2" in text[0]
+    lines = history_orders(study, records)
+    assert len(lines) == 3 and lines[-1].startswith("*:")
+    assert "mouth-area history 0.75, 0.188, 0.0469* m^2 (orders 2.00, -)" in lines[1]
+    assert "centre-of-mass distance 0.5, 0.25, 0.125 m (orders 1.00, 1.00)" in lines[1]
+    assert lines[0].count("*") == 0  # t <= 0.5 s: floor 0.06 / 64 below every difference
