@@ -20,7 +20,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from rodnet.bench import BenchRun, Study, errors, run_one, write_outputs
+from rodnet.bench import BenchRun, Study, errors, perturbed, run_one, write_outputs
 
 FOLDER = Path(__file__).parent / "results" / "refine_small_net"
 BASE = ("net.nodes_per_side=5", "net.mesh_length=1.0", "net.corner_mass=0.2", "net.launch_speed=10.0",
@@ -35,6 +35,9 @@ def study() -> Study:
     runs = [BenchRun(f"{name} n={n}", "safety 0.5", name, BASE + model + (f"model.elements_per_thread={n}",))
             for name, model in FAMILIES.items() for n in NS]
     references = {name: BenchRun(f"{name} n={NS[-1]}", "safety 0.5", name, ()).label for name in FAMILIES}
+    # sensitivity runs: n = 4 launched 1e-9 faster and slower
+    runs += [perturbed(run, relative) for run in list(runs) if run.curve.endswith(" n=4")
+             for relative in (1e-9, -1e-9)]
     notes = ["Wall times: process wall time with the model build, one thread (NUMBA_NUM_THREADS=1), "
              "another heavy run on the other core.",
              "Measured: the largest mouth area of every family lies within 29.24 - 29.33 m^2 "
@@ -45,8 +48,18 @@ def study() -> Study:
              "to 0.25 moves it by 0.07 %). The centre-of-mass path does converge in n: its "
              "largest distance to the n = 16 run over the 1 s falls from 0.84 to 0.57, 0.41 and "
              "0.19 m (pinned rods, n = 1, 2, 4, 8) and from 0.41 to 0.24, 0.056 and 0.040 m "
-             "(lumped); with rigid knots 0.44, 0.57, 0.41, 0.079 m."]
-    return Study(runs, references, 1.0, notes, scene="the 5 x 5 net refined in elements per thread")
+             "(lumped); with rigid knots 0.44, 0.57, 0.41, 0.079 m.",
+             "Sensitivity (the runs 'launch speed +-1e-09', n = 4): launching 1e-8 m/s faster or "
+             "slower moves the largest mouth area by at most 0.003 m^2 (0.01 %), below the "
+             "changes between successive n (0.01 - 0.05 m^2): on this net, unlike the 21 x 21 "
+             "net, the scatter of the largest area in n is a discretisation effect not yet in "
+             "its asymptotic range, not the amplified perturbation. The histories converge in n "
+             "irregularly: up to 0.3 s the rigid rods' mouth area with orders 3.99, 0.93, 1.35 "
+             "and centre-of-mass distance 2.62, 1.35, 2.07; the lumped net 2.86, 0.83, 0.43 and "
+             "2.66, 1.57, 0.42; the pinned rods only from n = 1 to 2 (2.03, 2.07), after which "
+             "successive differences stay about equal (0.009 - 0.012 m^2)."]
+    return Study(runs, references, 1.0, notes, scene="the 5 x 5 net refined in elements per thread",
+                 order_windows=(0.1, 0.3, 0.53))
 
 
 def plot(s: Study, records: dict[str, dict[str, Any]], path: Path) -> None:
@@ -59,7 +72,7 @@ def plot(s: Study, records: dict[str, dict[str, Any]], path: Path) -> None:
 
     fig, (left, right) = plt.subplots(1, 2, figsize=(10, 4))
     for name in FAMILIES:
-        runs = [r for r in s.runs if r.family == name]
+        runs = [r for r in s.runs if r.family == name and not r.twin]
         reference = records[s.references[name]]
         area = [records[r.label]["summary"]["metrics"]["max_mouth_area"] for r in runs]
         path_error = [errors(records[r.label], reference)["com_path"] for r in runs]
