@@ -16,8 +16,9 @@ Error measures (all against the family's reference):
 
 Below the table: the observed order of the largest mouth area in elements per thread and in
 the setting (where it is monotone), what a launch 1e-9 faster or slower changes (sensitivity
-runs, :func:`perturbed`: the floor below which two runs cannot be told apart), and the observed
-orders of the mouth-area and centre-of-mass histories up to a few times and over the whole run
+runs, :func:`perturbed`: the floor below which two runs cannot be told apart), the observed
+orders of the largest mouth area and of its time taken between the saved frames
+(:func:`peak_orders`), and those of the mouth-area and centre-of-mass histories up to a few times and over the whole run
 (:func:`history_orders`), differences at or below the floor starred.
 
 Outputs in the chosen folder: ``work_precision.md`` (Markdown table), ``work_precision.csv``,
@@ -356,6 +357,25 @@ def setting_orders(study: Study, records: dict[str, dict[str, Any]]) -> list[str
     return lines
 
 
+def interpolated_peak(record: dict[str, Any]) -> tuple[float, float] | None:
+    """Time [s] and value [m^2] of the largest mouth area between the frames: the vertex of the
+    parabola through the largest saved frame and its two neighbours (the frames alone resolve
+    the time only to the frame interval, and the largest value to about ``A'' dt^2 / 8``).
+    None for a run without its series or with its largest area at the first or last frame."""
+    series = record.get("series", {})
+    if record["summary"].get("status") != "ok" or "mouth_area" not in series:
+        return None
+    t, a = np.asarray(series["time"]), np.asarray(series["mouth_area"])
+    i = int(np.argmax(a))
+    if i == 0 or i == len(a) - 1:
+        return None
+    curvature = a[i - 1] - 2.0 * a[i] + a[i + 1]
+    if curvature >= 0.0:
+        return None
+    shift = 0.5 * (a[i - 1] - a[i + 1]) / curvature  # in frame intervals, within [-1/2, 1/2]
+    return float(t[i] + shift * (t[i + 1] - t[i])), float(a[i] - 0.25 * (a[i - 1] - a[i + 1]) * shift)
+
+
 def history_difference(a: dict[str, Any], b: dict[str, Any], key: str,
                        until: float = math.inf) -> float:
     """Largest ``|a - b|`` of the series ``key`` (``"mouth_area"`` [m^2], ``"distance"`` [m])
@@ -399,6 +419,12 @@ def sensitivity(study: Study, records: dict[str, dict[str, Any]]) -> tuple[list[
         da = m["max_mouth_area"] - m0["max_mouth_area"]
         parts = [f"largest mouth area {da:+.3g} m^2 ({100 * da / m0['max_mouth_area']:+.2g} %), "
                  f"its time {m['time_of_max_mouth_area'] - m0['time_of_max_mouth_area']:+.3g} s"]
+        peak, peak0 = interpolated_peak(rec), interpolated_peak(twin)
+        if peak is not None and peak0 is not None:
+            dt_peak, da_peak = peak[0] - peak0[0], peak[1] - peak0[1]
+            parts.append(f"between the frames {da_peak:+.3g} m^2 at {1e3 * dt_peak:+.3g} ms")
+            for key, d in (("peak_area", abs(da_peak)), ("peak_time", abs(dt_peak))):
+                floor[(run.family, key, math.inf)] = max(floor.get((run.family, key, math.inf), 0.0), d)
         for key, name, unit in HISTORIES:
             values = []
             for w in _windows(study):
@@ -442,6 +468,42 @@ def _sequences(study: Study, records: dict[str, dict[str, Any]]) -> list[tuple[s
                 ", ".join(f"{v:g}" for v in chain)
             out.append((title, chain[1] / chain[0], [members[v] for v in chain]))
     return out
+
+
+def peak_orders(study: Study, records: dict[str, dict[str, Any]]) -> list[str]:
+    """Observed orders of the largest mouth area and of its time between the frames
+    (:func:`interpolated_peak`) under refinement (:func:`_sequences`): ``log(|d_i| / |d_i+1|) /
+    log(r)`` of successive differences ``d_i``; none where they change sign, and, where the
+    family has sensitivity runs, none from a difference not above theirs (starred)."""
+    _, floor = sensitivity(study, records)
+    lines = []
+    for title, ratio, labels in _sequences(study, records):
+        peaks = [interpolated_peak(records[label]) for label in labels]
+        if any(p is None for p in peaks):
+            continue
+        family = next(r.family for r in study.runs if r.label == labels[0])
+        parts = []
+        for k, key, name, unit, scale in ((1, "peak_area", "largest mouth area", "m^2", 1.0),
+                                          (0, "peak_time", "its time", "ms", 1e3)):
+            values = [scale * p[k] for p in peaks]  # type: ignore[index]
+            ds = [a - b for a, b in zip(values, values[1:])]
+            f = floor.get((family, key, math.inf))
+            marks = ["*" if f is not None and abs(d) <= scale * f else "" for d in ds]
+            orders = []
+            for i in range(len(ds) - 1):
+                if marks[i] or marks[i + 1] or ds[i] * ds[i + 1] <= 0.0:
+                    orders.append("-")
+                else:
+                    orders.append(f"{math.log(ds[i] / ds[i + 1]) / math.log(max(ratio, 1.0 / ratio)):.2f}")
+            parts.append(f"{name} " + ", ".join(f"{v:.6g}" for v in values) + f" {unit} "
+                         "(differences " + ", ".join(f"{d:+.3g}{m}" for d, m in zip(ds, marks))
+                         + "; orders " + ", ".join(orders) + ")")
+        lines.append(f"{title}: between the frames, " + "; ".join(parts))
+    if lines and floor:
+        lines.append("Between the frames: the vertex of the parabola through the largest saved "
+                     "frame and its neighbours; no order where successive differences change "
+                     "sign; *: not above what the sensitivity runs change.")
+    return lines
 
 
 def history_orders(study: Study, records: dict[str, dict[str, Any]]) -> list[str]:
@@ -493,7 +555,7 @@ def write_outputs(study: Study, records: dict[str, dict[str, Any]], folder: Path
     md += ["| " + " | ".join(r) + " |" for r in rows]
     md += ["", *[f"- {line}" for line in spatial_orders(study, records)
                  + setting_orders(study, records) + sensitivity(study, records)[0]
-                 + history_orders(study, records) + study.notes]]
+                 + peak_orders(study, records) + history_orders(study, records) + study.notes]]
     text = "\n".join(md) + "\n"
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "work_precision.md").write_text(text)

@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rodnet.bench import (BenchRun, Study, errors, history_orders, perturbed, sensitivity, setting_orders,
-                          spatial_orders, write_outputs)
+from rodnet.bench import (BenchRun, Study, errors, history_orders, interpolated_peak, peak_orders, perturbed,
+                          sensitivity, setting_orders, spatial_orders, write_outputs)
 
 
 def _record(area: float, t_max: float, dist: float, path: list[float], status: str = "ok") -> dict:
@@ -136,3 +136,33 @@ def test_history_orders_and_the_sensitivity_floor() -> None:
     assert "mouth-area history 0.75, 0.188, 0.0469* m^2 (orders 2.00, -)" in lines[1]
     assert "centre-of-mass distance 0.5, 0.25, 0.125 m (orders 1.00, 1.00)" in lines[1]
     assert lines[0].count("*") == 0  # t <= 0.5 s: floor 0.06 / 64 below every difference
+
+
+def test_interpolated_peak() -> None:
+    """The parabola through the largest frame and its neighbours finds the vertex of a parabolic
+    history exactly between frames, that of a cosine to O(dt^4) in time; none at an end."""
+    t = np.arange(0.0, 1.0001, 0.01)
+    peak = interpolated_peak(_history_record(450.0 - 3000.0 * (t - 0.5337) ** 2, t, t))
+    assert peak == pytest.approx((0.5337, 450.0), abs=1e-12)
+    time, area = interpolated_peak(_history_record(450.0 + 20.0 * np.cos(3.0 * (t - 0.5337)), t, t))
+    assert abs(time - 0.5337) < 1e-6 and abs(area - 470.0) < 1e-5
+    assert interpolated_peak(_history_record(400.0 + t, t, t)) is None
+
+
+def test_peak_orders_in_n() -> None:
+    """Peaks at t = 0.5 + 0.04 / n^2 with area 450 + 8 / n give orders 2 (time) and 1 (area)
+    between the frames, though every run's largest frame is at 0.5 s or 0.51 s; a sensitivity
+    run shifting the peak by more than the finest time difference stars it."""
+    t = np.arange(0.0, 1.0001, 0.01)
+    runs = [BenchRun(f"rods n={n}", "safety 0.5", "bending", ()) for n in (1, 2, 4, 8)]
+    records = {r.label: _history_record(450.0 + 8.0 / n - 500.0 * (t - 0.5 - 0.04 / n**2) ** 2, t, t)
+               for r, n in zip(runs, (1, 2, 4, 8))}
+    study = Study(runs, {"bending": runs[-1].label}, 1.0)
+    line = peak_orders(study, records)[0]
+    assert "largest mouth area 458, 454, 452, 451 m^2 (differences +4, +2, +1; orders 1.00, 1.00)" in line
+    assert "its time 540, 510, 502.5, 500.625 ms (differences +30, +7.5, +1.88; orders 2.00, 2.00)" in line
+    twin = perturbed(runs[0], 1e-9)
+    records[twin.label] = _history_record(458.0 - 500.0 * (t - 0.5425) ** 2, t, t)
+    study.runs.append(twin)
+    line = peak_orders(study, records)[0]
+    assert "(differences +30, +7.5, +1.88*; orders 2.00, -)" in line
