@@ -112,7 +112,9 @@ def study() -> Study:
              "(symplectic Euler is first order), the lumped net refined in n 3.23 (area, n = 1, "
              "2, 4) and 2.77, 1.31 (distance), the rods in n 2.77 (area) and 2.69 (distance) for "
              "n = 1, 2, 4. The lumped net's step refinement stays at or below the floor in every "
-             "window: converged in the step as far as can be told.",
+             "window: converged in the step as far as can be told. The time of the largest area "
+             "between the frames moves by 0.5 - 1.1 ms with the perturbation and converges in n "
+             "above that (lumped: orders 0.99, 1.35; rods n = 1, 2, 4: 0.55).",
              "The bending reference is explicit too; its own error is that of the added rotary "
              "inertia and of the step, so the table's errors for the bending family measure "
              "convergence in the step, not the distance to the unscaled rods (see "
