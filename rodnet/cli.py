@@ -82,11 +82,11 @@ def main(argv: list[str] | None = None) -> int:
     except SceneError as exc:
         print(f"rodnet: bad input: {exc}. Nothing was run and no output was written.", file=sys.stderr)
         return EXIT_BAD_INPUT
-    warnings = []
+    warnings = list(result.summary.get("warnings", []))
     if result.status == "ok" and (scene.output.picture or scene.output.plot) and "mouth_area" in result.arrays:
         from rodnet.viz.figures import render_in_subprocess
 
-        warnings = render_in_subprocess(result.directory, scene.output.picture, scene.output.plot)
+        warnings += render_in_subprocess(result.directory, scene.output.picture, scene.output.plot)
     for w in warnings:
         print(f"rodnet: warning: {w}", file=sys.stderr)
     _report(result)

@@ -23,6 +23,7 @@ from rodnet.errors import SceneError, SimulationFailed
 from rodnet.integrate.frames import StepStats, frame_times
 from rodnet.io.results import scene_as_dict, write_npz, write_summary
 from rodnet.io.vtk import VtkSeries
+from rodnet.kernels.cosserat_strain import ROTATION_STOP
 from rodnet.metrics import distance, mouth_area, net_metrics
 from rodnet.progress import Progress
 from rodnet.formulations.cosserat_build import build_cosserat
@@ -159,6 +160,8 @@ class Recorder:
     """What the messages of the energy and inverted-element checks tell the user to do."""
     time: list[float] = field(default_factory=list)
     frames: list[dict[str, NDArray[np.float64]]] = field(default_factory=list)
+    max_element_rotation: float = 0.0
+    """Largest relative rotation [rad] of a rod element's end triads over the saved frames."""
 
     ENERGY_GROWTH = 0.1
     """The guard's threshold: a rise above the start energy by this fraction of it."""
@@ -169,6 +172,9 @@ class Recorder:
             return
         frame = self.model.frame_arrays(q, v)
         frame["kinetic_energy"], frame["elastic_energy"] = _kinetic_and_elastic(self.model, q, v, t)
+        if hasattr(self.model, "element_rotation"):
+            self.max_element_rotation = max(self.max_element_rotation,
+                                            float(self.model.element_rotation(q).max(initial=0.0)))
         self.time.append(t)
         self.frames.append(frame)
         if self.vtk is not None:
@@ -273,7 +279,8 @@ def run(scene: Scene, directory: str | Path | None = None, *, progress: bool | N
         bar.close()
         wall = time.perf_counter() - start
         arrays = recorder.arrays(prepared.structure)
-        summary = _summary(prepared, arrays, stats, status, message, wall)
+        summary = _summary(prepared, arrays, stats, status, message, wall,
+                           recorder.max_element_rotation)
         if log is not None:
             log.add_results(arrays, summary)
         write_npz(out / "result.npz", arrays)
@@ -328,8 +335,20 @@ def _stable_step(p: Prepared) -> float | None:
     return p.model.stable_step() if hasattr(p.model, "stable_step") else None
 
 
+def _warnings(stats: StepStats, frame_rotation: float) -> list[str]:
+    """What the user should know about a completed or failed run: a rod element turned past the
+    rotation stop (C52), where the stop's moment, not the section, resisted its rotation."""
+    phi = max(stats.max_element_rotation or 0.0, frame_rotation)
+    if phi <= ROTATION_STOP:
+        return []
+    return [f"a rod element turned by {phi:.4f} rad between its end triads, {phi - ROTATION_STOP:.2g} "
+            f"rad past the rotation stop at {ROTATION_STOP:g} rad (FORMULATION.md C52): there the stop's stiffness, not the "
+            "section's, resisted it, so the rod bends or twists more sharply than its elements "
+            "resolve; use more elements (model.elements_per_thread, or rods.elements)"]
+
+
 def _summary(p: Prepared, arrays: dict[str, NDArray[Any]], stats: StepStats, status: str,
-             message: str, wall: float) -> dict[str, Any]:
+             message: str, wall: float, frame_rotation: float = 0.0) -> dict[str, Any]:
     structure = p.structure
     metrics: dict[str, float] = {}
     if len(arrays["time"]):
@@ -354,5 +373,6 @@ def _summary(p: Prepared, arrays: dict[str, NDArray[Any]], stats: StepStats, sta
                        "max_element_rotation": stats.max_element_rotation},
         "model": {"type": p.scene.model.type, "nodes": structure.n_nodes,
                   "elements": len(structure.segments), "dofs": p.model.n_dof},
-        "nodes": structure.selectors, "metrics": metrics, "scene": scene_as_dict(p.scene),
+        "nodes": structure.selectors, "metrics": metrics,
+        "warnings": _warnings(stats, frame_rotation), "scene": scene_as_dict(p.scene),
     }

@@ -167,3 +167,27 @@ vtk = false
     result = run(scene, tmp_path, progress=False)
     assert result.status == "ok"
     assert result.arrays["positions"][-1, -1, 2] < 0.0      # the free end moves down
+
+
+
+ROLLUP = Path(__file__).parent.parent / "validation" / "cases" / "cantilever_rollup" / "scene.toml"
+
+
+def test_warning_when_an_element_reaches_the_rotation_stop(tmp_path: Path, capsys) -> None:
+    """The roll-up cantilever (EI = 98.17 N m^2, L = 1 m) as one element: an end moment M turns
+    it by M L / EI, 800 N m by 8.1 rad, so the rotation stop (C52) holds it at 5 rad and the run
+    warns, on the console and in summary.json; 300 N m (3.1 rad, the section's own answer)
+    gives no warning."""
+    one = ["--set", "rods[0].elements=1", "--set", "simulation.load_steps=20", "--quiet"]
+    out = tmp_path / "far"
+    assert main(["run", str(ROLLUP), "-o", str(out), "--set", "loads[0].moment=[0, 0, 800]", *one]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert len(summary["warnings"]) == 1 and "past the rotation stop at 5 rad" in summary["warnings"][0]
+    assert "rodnet: warning: a rod element turned by 5.0" in capsys.readouterr().err
+    rotations = np.load(out / "result.npz")["rotations"][-1]  # (2, 4): clamp, tip
+    w = abs(float(np.dot(rotations[0], rotations[1])))  # cos of half the angle between the triads
+    # the smallest angle between the triads, 2 pi - 5 rad: the tip stays at 5 rad, not 8.1
+    assert 2.0 * np.arccos(min(w, 1.0)) == pytest.approx(2.0 * np.pi - 5.0, abs=0.01)
+    out = tmp_path / "near"
+    assert main(["run", str(ROLLUP), "-o", str(out), "--set", "loads[0].moment=[0, 0, 300]", *one]) == 0
+    assert json.loads((out / "summary.json").read_text())["warnings"] == []

@@ -332,6 +332,13 @@ class CosseratModel:
         return section_state(self.rest_length, self.reference_strain, self.stiffness, self.tau,
                              x, quat, ve, self.tension_only, self.kink_strain)
 
+    def element_rotation(self, q: RodConfiguration) -> FloatArray:
+        """Relative rotation angle ``|psi|`` [rad] of every element's end triads, (E,): what the
+        rotation stop (FORMULATION.md C52) acts on beyond ``ROTATION_STOP``."""
+        eps, _ = self.section_state(q, np.zeros(self.n_dof))
+        psi = (eps[:, 3:6] + self.reference_strain[:, 3:6]) * self.rest_length[:, None]
+        return np.linalg.norm(psi, axis=1)
+
     def frame_arrays(self, q: RodConfiguration, v: FloatArray) -> dict[str, FloatArray]:
         """What a saved frame holds: positions, velocities, rotations, and per element the axial
         force ``tension`` [N], ``curvature`` |(K_1, K_2)| [1/m] and ``twist`` K_0 [1/m]."""
