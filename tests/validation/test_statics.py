@@ -11,8 +11,10 @@ scikit-fem beam model :mod:`rodnet.reference.beam_skfem`; none comes from rodnet
 - Observed convergence order 2 +- 0.2 on 5, 10, 20 and 40 elements of the buckling load (against
   pi^2 EI / L^2) and of the first cantilever frequency (against the Timoshenko beam).
 - A static solution through :func:`rodnet.run.run` that does not depend on ``load_steps``.
-- The expected values of the ``cantilever_elastica`` and ``cantilever_gravity`` validation cases,
-  recomputed from their scenes (the cases themselves run in ``test_cases.py``).
+- The expected values of the ``cantilever_elastica``, ``cantilever_gravity`` and ``bend45``
+  validation cases, recomputed from their scenes (the cases themselves run in
+  ``test_cases.py``); ``bend45`` by shooting on the Cosserat rod equations of the curved
+  cantilever, checked against the linear out-of-plane deflection of a quarter circle.
 - An unsupported static rod stops with a message on standard error, not a traceback.
 
 Pinned-pinned column. A ``"pin"`` support holds the position only, so a column pinned at both
@@ -37,7 +39,8 @@ import pytest
 
 from rodnet.errors import SceneError
 import scipy.linalg
-from scipy.integrate import solve_bvp
+from scipy.integrate import solve_bvp, solve_ivp
+from scipy.optimize import fsolve
 from scipy.optimize import brentq
 from scipy.special import ellipe, ellipeinc, ellipk, ellipkinc
 
@@ -355,6 +358,64 @@ def test_elastica_case_expects_the_elastica() -> None:
             value = x * length if c["component"] == "x" else -w * length
             assert c["expected"] == pytest.approx(value, abs=1e-9 * length)
     assert round(-force[2] * length**2 / ei, 12) == 5.0
+
+
+def bend_tip(force: np.ndarray, radius: float, angle: float, ea: float, ga: float, ei: float,
+             gj: float, steps: int = 4) -> np.ndarray:
+    """Tip position (3,) of a circular arc in the x-y plane, clamped at the origin with tangent
+    +y and curving towards +x, under a dead tip force ``force`` (3,): the Cosserat rod equations
+    r' = R nu, R' = R [kappa]x, nu = e1 + diag(EA, GA, GA)^-1 R^T F,
+    kappa = kappa0 + diag(GJ, EI, EI)^-1 R^T ((r_tip - r) x F), kappa0 = (0, 0, -1 / radius),
+    integrated along the arc (DOP853, rtol 1e-12) and shot on r_tip (fsolve), the load raised in
+    ``steps`` increments."""
+    k0 = np.array([0.0, 0.0, -1.0 / radius])
+    start = np.concatenate([np.zeros(3), np.column_stack([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0],
+                                                          [0.0, 0.0, 1.0]]).ravel()])
+
+    def miss(tip: np.ndarray, f: np.ndarray) -> np.ndarray:
+        def rhs(_s: float, y: np.ndarray) -> np.ndarray:
+            rot = y[3:].reshape(3, 3)
+            n, m = rot.T @ f, rot.T @ np.cross(tip - y[:3], f)
+            nu = np.array([1.0 + n[0] / ea, n[1] / ga, n[2] / ga])
+            k = k0 + np.array([m[0] / gj, m[1] / ei, m[2] / ei])
+            hat = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+            return np.concatenate([rot @ nu, (rot @ hat).ravel()])
+
+        y = solve_ivp(rhs, (0.0, radius * angle), start, method="DOP853", rtol=1e-12, atol=1e-12).y
+        return y[:3, -1] - tip
+
+    tip = radius * np.array([1.0 - np.cos(angle), np.sin(angle), 0.0])
+    for level in np.arange(1, steps + 1) / steps:
+        tip = fsolve(miss, tip, args=(level * np.asarray(force, float),), xtol=1e-13)
+    return tip
+
+
+def test_bend_tip_reference_limits() -> None:
+    """The shooting solution reproduces the unloaded arc and, at a small load, the linear
+    out-of-plane deflection of a quarter-circle cantilever (Castigliano, inextensible, no shear):
+    w = P R^3 (pi / 4 / EI + (3 pi / 4 - 2) / GJ)."""
+    radius, ei, gj, p = 2.0, 3.0, 2.0, 1e-6
+    tip = bend_tip(np.array([0.0, 0.0, p]), radius, np.pi / 2, 1e12, 1e12, ei, gj, steps=1)
+    assert tip[:2] == pytest.approx([radius, radius], abs=1e-9)
+    w = p * radius**3 * (np.pi / 4 / ei + (3 * np.pi / 4 - 2) / gj)
+    assert tip[2] == pytest.approx(w, rel=1e-6)
+
+
+def test_bend45_case_expects_the_rod_equations() -> None:
+    scene, expected = case("bend45")
+    mat, rod = scene.materials[0], scene.rods[0]
+    points = np.asarray(rod.points)
+    radius = float(np.linalg.norm(points[0] - [100.0, 0.0, 0.0]))
+    assert np.allclose(np.linalg.norm(points - [100.0, 0.0, 0.0], axis=1), radius)  # on the arc
+    angle = float(np.arctan2(points[-1, 1], 100.0 - points[-1, 0]))
+    assert radius == 100.0 and angle == pytest.approx(np.pi / 4)
+    force = np.asarray(scene.loads[0].force)
+    tips = {f: bend_tip(force * (f + 1) / scene.simulation.load_steps, radius, angle,
+                        mat.axial_stiffness, mat.shear_stiffness, mat.bending_stiffness,
+                        mat.torsional_stiffness, steps=2 * (f + 1))
+            for f in {c["frame"] for c in expected["checks"]}}
+    for c in expected["checks"]:
+        assert c["expected"] == pytest.approx(tips[c["frame"]]["xyz".index(c["component"])], abs=1e-7)
 
 
 def test_gravity_case_expects_the_uniform_load_cantilever() -> None:
