@@ -18,8 +18,9 @@ Below the table: the observed order of the largest mouth area in elements per th
 the setting (where it is monotone), what a launch 1e-9 faster or slower changes (sensitivity
 runs, :func:`perturbed`: the floor below which two runs cannot be told apart), the observed
 orders of the largest mouth area and of its time taken between the saved frames
-(:func:`peak_orders`), and those of the mouth-area and centre-of-mass histories up to a few times and over the whole run
-(:func:`history_orders`), differences at or below the floor starred.
+(:func:`peak_orders`), and those of the mouth-area and centre-of-mass histories up to a few
+times and over the whole run (:func:`history_orders`), differences at or below the floor
+starred.
 
 Outputs in the chosen folder: ``work_precision.md`` (Markdown table), ``work_precision.csv``,
 ``work_precision.png`` (wall time against the max-mouth-area error, one curve per model) and
@@ -290,6 +291,12 @@ def _fmt(value: Any) -> str:
     return f"{value:.4g}"
 
 
+_N_CURVE = re.compile(r"(.*?)\s*n=(\d+)")
+"""A curve refined in elements per thread: ``"<model> n=<n>"``."""
+_SETTING = re.compile(r"(\w+)\s+([0-9.eE+-]+)")
+"""A setting refined along a curve: ``"<name> <value>"`` (``"safety 0.25"``, ``"tol 1e-4"``)."""
+
+
 def spatial_orders(study: Study, records: dict[str, dict[str, Any]]) -> list[str]:
     """Observed spatial order of the max mouth area of every model refined in elements per
     thread: runs whose curve ends in ``n=<elements>`` are grouped by the rest of the curve name
@@ -298,7 +305,7 @@ def spatial_orders(study: Study, records: dict[str, dict[str, Any]]) -> list[str
     two differences differ in sign: not monotone)."""
     groups: dict[tuple[str, str], dict[int, float]] = {}
     for run in study.runs:
-        match = re.fullmatch(r"(.*?)\s*n=(\d+)", run.curve)
+        match = _N_CURVE.fullmatch(run.curve)
         rec = records[run.label]
         if match and rec["summary"].get("status") == "ok" and not run.twin:
             areas = groups.setdefault((match.group(1), run.setting), {})
@@ -341,7 +348,7 @@ def setting_orders(study: Study, records: dict[str, dict[str, Any]]) -> list[str
     """
     groups: dict[tuple[str, str], dict[float, float]] = {}
     for run in study.runs:
-        match = re.fullmatch(r"(\w+)\s+([0-9.eE+-]+)", run.setting)
+        match = _SETTING.fullmatch(run.setting)
         rec = records[run.label]
         if match and rec["summary"].get("status") == "ok":
             values = groups.setdefault((run.curve, match.group(1)), {})
@@ -448,10 +455,10 @@ def _sequences(study: Study, records: dict[str, dict[str, Any]]) -> list[tuple[s
     for run in study.runs:
         if run.twin or records.get(run.label, {}).get("summary", {}).get("status") != "ok":
             continue
-        match = re.fullmatch(r"(.*?)\s*n=(\d+)", run.curve)
+        match = _N_CURVE.fullmatch(run.curve)
         if match:
             by_n.setdefault((match.group(1), run.setting), {})[float(match.group(2))] = run.label
-        match = re.fullmatch(r"(\w+)\s+([0-9.eE+-]+)", run.setting)
+        match = _SETTING.fullmatch(run.setting)
         if match:
             by_setting.setdefault((run.curve, match.group(1)), {})[float(match.group(2))] = run.label
     out = []
@@ -468,6 +475,12 @@ def _sequences(study: Study, records: dict[str, dict[str, Any]]) -> list[tuple[s
                 ", ".join(f"{v:g}" for v in chain)
             out.append((title, chain[1] / chain[0], [members[v] for v in chain]))
     return out
+
+
+def _ratio_order(d1: float, d2: float, ratio: float) -> str:
+    """``log(d1 / d2) / log(r)``, ``r = max(ratio, 1 / ratio)``, for successive differences of
+    one sign, the coarser first (a setting that shrinks has ``ratio < 1``)."""
+    return f"{math.log(d1 / d2) / math.log(max(ratio, 1.0 / ratio)):.2f}"
 
 
 def peak_orders(study: Study, records: dict[str, dict[str, Any]]) -> list[str]:
@@ -494,7 +507,7 @@ def peak_orders(study: Study, records: dict[str, dict[str, Any]]) -> list[str]:
                 if marks[i] or marks[i + 1] or ds[i] * ds[i + 1] <= 0.0:
                     orders.append("-")
                 else:
-                    orders.append(f"{math.log(ds[i] / ds[i + 1]) / math.log(max(ratio, 1.0 / ratio)):.2f}")
+                    orders.append(_ratio_order(ds[i], ds[i + 1], ratio))
             parts.append(f"{name} " + ", ".join(f"{v:.6g}" for v in values) + f" {unit} "
                          "(differences " + ", ".join(f"{d:+.3g}{m}" for d, m in zip(ds, marks))
                          + "; orders " + ", ".join(orders) + ")")
@@ -531,8 +544,7 @@ def history_orders(study: Study, records: dict[str, dict[str, Any]]) -> list[str
                 f = floor.get((family, key, w))
                 marks = ["*" if f is not None and d <= f else "" for d in ds]
                 orders = ["-" if marks[i + 1] or ds[i + 1] == 0.0 or marks[i]
-                          else f"{math.log(ds[i] / ds[i + 1]) / math.log(max(ratio, 1.0 / ratio)):.2f}"
-                          for i in range(len(ds) - 1)]
+                          else _ratio_order(ds[i], ds[i + 1], ratio) for i in range(len(ds) - 1)]
                 parts.append(f"{name} " + ", ".join(f"{d:.3g}{m}" for d, m in zip(ds, marks))
                              + f" {unit} (orders " + ", ".join(orders) + ")")
             span = "the whole run" if w >= study.duration else f"t <= {w:g} s"

@@ -341,10 +341,11 @@ def _warnings(stats: StepStats, frame_rotation: float) -> list[str]:
     phi = max(stats.max_element_rotation or 0.0, frame_rotation)
     if phi <= ROTATION_STOP:
         return []
-    return [f"a rod element turned by {phi:.4f} rad between its end triads, {phi - ROTATION_STOP:.2g} "
-            f"rad past the rotation stop at {ROTATION_STOP:g} rad (FORMULATION.md C52): there the stop's stiffness, not the "
-            "section's, resisted it, so the rod bends or twists more sharply than its elements "
-            "resolve; use more elements (model.elements_per_thread, or rods.elements)"]
+    return [f"a rod element turned by {phi:.4f} rad between its end triads, "
+            f"{phi - ROTATION_STOP:.2g} rad past the rotation stop at {ROTATION_STOP:g} rad "
+            "(FORMULATION.md C52): there the stop's stiffness, not the section's, resisted it, "
+            "so the rod bends or twists more sharply than its elements resolve; use more "
+            "elements (model.elements_per_thread, or rods.elements)"]
 
 
 def _summary(p: Prepared, arrays: dict[str, NDArray[Any]], stats: StepStats, status: str,

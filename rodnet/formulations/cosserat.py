@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 
 from rodnet.assembly import IterationMatrix, SparsityPattern, assemble_vector
 from rodnet.kernels import so3, so3_compiled
+from rodnet.kernels.cosserat_strain import kinematics
 from rodnet.kernels.cosserat import (internal_force, internal_force_and_tangents, section_state,
                                      strain_energy)
 
@@ -134,14 +135,19 @@ class CosseratModel:
 
     # --- element state -------------------------------------------------------------------
 
+    def _element_pose(self, q: RodConfiguration) -> tuple[FloatArray, FloatArray]:
+        """Element end positions (E, 2, 3) and material quaternions (E, 2, 4)."""
+        quat = q.quat[self.rot_nodes]
+        if self.end_offset is not None:
+            quat = so3.quat_multiply(quat, self.end_offset)
+        return q.x[self.pos_nodes], quat
+
     def _element_state(self, q: RodConfiguration, v: FloatArray) -> tuple[FloatArray, ...]:
         """Element end positions (E, 2, 3), material quaternions (E, 2, 4), velocities (E, 12)
         with angular velocities in the end's material frame."""
-        x = q.x[self.pos_nodes]
-        quat = q.quat[self.rot_nodes]
+        x, quat = self._element_pose(q)
         ve = v[self.element_dofs]
         if self.end_offset is not None:
-            quat = so3.quat_multiply(quat, self.end_offset)
             ve = np.einsum("eji,ej->ei", self._offset_transform, ve)
         return x, quat, ve
 
@@ -335,9 +341,7 @@ class CosseratModel:
     def element_rotation(self, q: RodConfiguration) -> FloatArray:
         """Relative rotation angle ``|psi|`` [rad] of every element's end triads, (E,): what the
         rotation stop (FORMULATION.md C52) acts on beyond ``ROTATION_STOP``."""
-        eps, _ = self.section_state(q, np.zeros(self.n_dof))
-        psi = (eps[:, 3:6] + self.reference_strain[:, 3:6]) * self.rest_length[:, None]
-        return np.linalg.norm(psi, axis=1)
+        return np.linalg.norm(kinematics(*self._element_pose(q))[0], axis=1)
 
     def frame_arrays(self, q: RodConfiguration, v: FloatArray) -> dict[str, FloatArray]:
         """What a saved frame holds: positions, velocities, rotations, and per element the axial
