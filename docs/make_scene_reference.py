@@ -55,7 +55,8 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
         "accuracy-controlled). Measured on the 1.5 m thread of the benchmark: 1e-5 m gives a "
         "tip error of 0.9 mm, 1e-6 m 0.23 mm. Not used by backward Euler, `explicit`, `rk45`."),
     "simulation.integrator": (
-        "", 'Not set: "explicit" for `model.type = "lumped"`, "generalized-alpha" otherwise. '
+        "", 'Not set: "explicit" for `model.type = "lumped"` and `"kirchhoff"`, "generalized-alpha" '
+        'otherwise (Kirchhoff threads run "explicit" or "rk45" only). '
         '"generalized-alpha": implicit, second order, numerical dissipation set by `rho_inf`. '
         '"backward-euler": implicit, first order, strongly dissipative. "midpoint": implicit, '
         "second order, conserves linear and angular momentum, no numerical dissipation. "
@@ -109,17 +110,23 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
         "([element](../elements/cosserat/FORMULATION.md), [rod model](rod_model.md)); with "
         '`bending` and `torsion` both false, cable threads. "lumped": point masses joined by '
         "spring-dampers ([formulation](../elements/spring/FORMULATION.md), "
-        "[lumped model](lumped_model.md))."),
+        '[lumped model](lumped_model.md)). "kirchhoff": the lumped cable plus a bending hinge at '
+        "every node inside a thread: shear-free threads with bending, no rotational unknowns, "
+        "the cable's explicit step ([formulation](../elements/kirchhoff/FORMULATION.md), "
+        "[Kirchhoff threads](kirchhoff.md)); straight threads, pinned knots, pin supports and "
+        'integrators "explicit" or "rk45" only.'),
     "model.elements_per_thread": (
         "", "Elements (segments) per net thread (mesh threads and corner threads), >= 1. "
         "`[[rods]]` give their own count in `elements`."),
     "model.bending": (
         "", '`model.type = "cosserat"`: false sets the bending stiffness `EI` to zero. With '
         "`torsion` also false the threads are cables: translations only, the lumped model's "
-        "equations. No effect on the lumped model."),
+        'equations. `model.type = "kirchhoff"`: false leaves out the hinges (the cable exactly). '
+        "No effect on the lumped model."),
     "model.torsion": (
         "", '`model.type = "cosserat"`: false sets the torsional stiffness `GJ` to zero; see '
-        "`bending`. No effect on the lumped model."),
+        "`bending`. No effect on the lumped model, nor on Kirchhoff threads, whose round "
+        "threads between pinned knots carry no twist (K6)."),
     "model.axial": (
         "", '"tension-only": `N = max(0, EA r(e) + tau EA r\'(e) de/dt)`, `tau = viscosity / E`: '
         'a thread never pushes (S5). "linear": `N = EA e + tau EA de/dt`, also resists '
@@ -128,7 +135,7 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
         "", 'Cosserat net: "rigid": the threads meeting at a knot share its rotation, so the knot '
         'passes bending and torsion from thread to thread; "pinned": shared position only, no '
         "moment passes. No effect on `[[rods]]`, the lumped model or cable threads, where every "
-        "knot is a pin."),
+        'knot is a pin. Kirchhoff threads need "pinned".'),
     "model.kink_strain": (
         "-", "Kink strain `delta` of the C1 ramp that smooths the tension-only law at `e = 0` "
         "(S4), in [0, 0.01); 0 gives the sharp kink. Above `delta` the force is `EA delta / 2` "

@@ -90,7 +90,7 @@ the residual bending flexibility of the element (FORMULATION.md, C44)."""
 class ModelSpec:
     """``[model]``: which mechanical model represents the threads."""
 
-    type: Literal["cosserat", "lumped"] = "cosserat"
+    type: Literal["cosserat", "lumped", "kirchhoff"] = "cosserat"
     elements_per_thread: int = 4
     bending: bool = True
     torsion: bool = True
@@ -470,7 +470,7 @@ class Scene:
         """The integrator in use: the scene's, or the model's default."""
         if self.simulation.integrator is not None:
             return self.simulation.integrator
-        return "explicit" if self.model.type == "lumped" else "generalized-alpha"
+        return "generalized-alpha" if self.model.type == "cosserat" else "explicit"
 
     def material(self, name: str) -> MaterialSpec:
         """The material called ``name``."""

@@ -29,6 +29,7 @@ from rodnet.progress import Progress
 from rodnet.formulations.cosserat_build import build_cosserat
 from rodnet.integrate.implicit import Stepper, integrate_implicit, solve_static
 from rodnet.integrate.newton import NewtonOptions
+from rodnet.formulations.kirchhoff import check_kirchhoff, hinges_of
 from rodnet.reference.lumped import build_lumped
 from rodnet.topology import Structure, build_structure
 
@@ -82,8 +83,12 @@ def prepare(scene: Scene) -> Prepared:
                 near_dt = sim.explicit_safety * near if sim.adaptive else min(plan.dt, near)
             return _prepared_times(scene, plan.model(model), q0, plan.initial_velocities(model, v0),
                                    plan.dt, mass, structure, rod_plan=plan, near_dt=near_dt)
-    else:  # lumped reference, or Cosserat threads without bending and torsion (cables)
-        model = build_lumped(scene, structure)
+    else:  # lumped reference, Kirchhoff threads, or Cosserat threads without bending and torsion
+        kirchhoff = scene.model.type == "kirchhoff"
+        if kirchhoff:
+            check_kirchhoff(scene)
+        hinges = hinges_of(scene, structure) if kirchhoff and scene.model.bending else None
+        model = build_lumped(scene, structure, hinges)
         q0, mass = structure.positions.copy(), model.mass
         v0 = structure.velocities.copy()
         v0[model.inv_mass == 0.0] = 0.0

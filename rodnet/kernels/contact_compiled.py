@@ -403,6 +403,7 @@ def forget_clearance(active, clearance):  # pragma: no cover - compiled
 def advance_contact(x, v, force, t0, dt, n_steps,
                     segments, rest_length, EA, etaA, kink_strain, tension_only,
                     inv_mass, gravity_force, load_nodes, load_force, load_ramp,
+                    hinges, hinge_stiffness, hinge_tau, hinge_rest,
                     radius, node_share, kind, body_size, body_bounds, bound_radius, travel_limit,
                     body_compliance, mesh_root, tri, lower, upper, left, right, start, count,
                     order, face_normal, edge_normal, corner_normal,
@@ -450,7 +451,8 @@ def advance_contact(x, v, force, t0, dt, n_steps,
     for step in range(n_steps):
         peak = accumulate_forces(x, v, t0 + step * dt, force, segments, rest_length, EA, etaA,
                                  kink_strain, tension_only, gravity_force, load_nodes,
-                                 load_force, load_ramp)
+                                 load_force, load_ramp, hinges, hinge_stiffness, hinge_tau,
+                                 hinge_rest)
         any_active = select_bodies(dt, node_speed, body_velocity, body_omega, bound_radius,
                                    travelled, clearance, active, body_force, body_moment)
         power, allowed = 0.0, np.inf

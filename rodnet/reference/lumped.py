@@ -8,7 +8,7 @@ each end, concentrated masses are added, supported nodes do not move.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
@@ -16,8 +16,10 @@ from numpy.typing import NDArray
 
 from rodnet.config import Scene
 from rodnet.errors import SceneError
+from rodnet.formulations.kirchhoff import Hinges
 from rodnet.assembly import SparsityPattern
 from rodnet.kernels.cable import cable_tangents, element_blocks
+from rodnet.kernels.hinge import hinge_energy, hinge_force, hinge_frequency
 from rodnet.kernels.tension import axial_energy, axial_force
 from rodnet.topology import Structure
 
@@ -53,6 +55,10 @@ class LumpedModel:
         mass * g [N].
     load_nodes : (L,) int, load_force : (L, 3) float, load_ramp : (L,) float
         Dead point loads [N] and their ramp times [s] (0: applied at once).
+    hinges : (H, 3) int, hinge_stiffness : (H,) float, hinge_tau : (H,) float, hinge_rest : (H, 2) float
+        Bending hinges of Kirchhoff threads, ``elements/kirchhoff/FORMULATION.md`` (K1): nodes
+        ``a, b, c``, ``k_h = EI / lbar`` [N m], retardation time [s], rest lengths of their two
+        segments [m]. No rows for the lumped model and cables.
     """
 
     structure: Structure
@@ -66,6 +72,11 @@ class LumpedModel:
     load_nodes: NDArray[np.int64]
     load_force: FloatArray
     load_ramp: FloatArray
+    hinges: NDArray[np.int64] = field(default_factory=lambda: np.zeros((0, 3), np.int64),
+                                      kw_only=True)
+    hinge_stiffness: FloatArray = field(default_factory=lambda: np.zeros(0), kw_only=True)
+    hinge_tau: FloatArray = field(default_factory=lambda: np.zeros(0), kw_only=True)
+    hinge_rest: FloatArray = field(default_factory=lambda: np.zeros((0, 2)), kw_only=True)
 
     @property
     def segments(self) -> NDArray[np.int64]:
@@ -103,10 +114,15 @@ class LumpedModel:
         return f
 
     def segment_force(self, x: FloatArray, v: FloatArray) -> FloatArray:
-        """Force the segments exert on every node [N], (N, 3), (S7)."""
+        """Force the segments (S7) and the bending hinges (K3), (K4) exert on every node [N],
+        (N, 3)."""
         _, direction, e, rate = self.segment_kinematics(x, v)
         n = axial_force(e, rate, self.EA, self.etaA, self.kink_strain, self.tension_only)
-        return self._incidence @ (n[:, None] * direction)
+        f = self._incidence @ (n[:, None] * direction)
+        if len(self.hinges):
+            f += hinge_force(x, v, self.hinges, self.hinge_stiffness, self.hinge_tau,
+                             self.hinge_rest)
+        return f
 
     def force(self, x: FloatArray, v: FloatArray, t: float) -> FloatArray:
         """Total force on every node [N], (N, 3): segment forces (S7) plus external forces."""
@@ -128,12 +144,16 @@ class LumpedModel:
         """The model's arrays in the order the compiled kernels take them (after the state)."""
         return (self.segments, self.rest_length, self.EA, self.etaA, self.kink_strain,
                 self.tension_only, self.gravity_force, self.load_nodes, self.load_force,
-                self.load_ramp)
+                self.load_ramp, self.hinges, self.hinge_stiffness, self.hinge_tau, self.hinge_rest)
 
     def energy(self, x: FloatArray, v: FloatArray, t: float) -> dict[str, float]:
-        """Kinetic, elastic and external-load potential energy [J], (S8)."""
+        """Kinetic, elastic and external-load potential energy [J], (S8); elastic includes the
+        hinges' bending energy (K2)."""
         _, _, e, _ = self.segment_kinematics(x, v)
         elastic = axial_energy(e, self.EA, self.rest_length, self.kink_strain, self.tension_only)
+        if len(self.hinges):
+            elastic = np.append(elastic, hinge_energy(x, self.hinges, self.hinge_stiffness,
+                                                                self.hinge_rest))
         kinetic = 0.5 * np.sum(self.mass * np.einsum("ij,ij->i", v, v))
         potential = -float(np.sum(self.external_force(t) * x))
         return {"kinetic": float(kinetic), "elastic": float(elastic.sum()), "potential": potential}
@@ -142,11 +162,17 @@ class LumpedModel:
         """Largest stable step [s] of the explicit (symplectic Euler) scheme, (S10).
 
         Each segment is taken as the stiffest mode it can drive: omega^2 = 2 k (1/m_a + 1/m_b)
-        (the highest mode of a uniform chain, 4 k / m), with its Kelvin-Voigt damping ratio.
+        (the highest mode of a uniform chain, 4 k / m), with its Kelvin-Voigt damping ratio;
+        bending hinges raise every segment's omega^2 by 4 times the largest hinge's (K5), which
+        holds in every configuration (their stiffness is constant).
         """
         a, b = self.segments[:, 0], self.segments[:, 1]
         k = self.EA / self.rest_length
-        omega = np.sqrt(2.0 * k * (self.inv_mass[a] + self.inv_mass[b]))
+        omega2 = 2.0 * k * (self.inv_mass[a] + self.inv_mass[b])
+        if len(self.hinges):
+            omega2 = omega2 + 4.0 * np.max(hinge_frequency(
+                self.hinges, self.hinge_stiffness, self.hinge_rest, self.inv_mass)) ** 2
+        omega = np.sqrt(omega2)
         return float(np.min(damped_limit(omega, self.etaA / self.EA), initial=np.inf))
 
     # --- the System protocol of rodnet.integrate.system (configuration q = positions (N, 3)) ---
@@ -186,6 +212,9 @@ class LumpedModel:
     def tangent_blocks(self, x: FloatArray, v: FloatArray, t: float, load_factor: float = 1.0,
                        ) -> tuple[FloatArray, FloatArray, FloatArray]:
         """g (N, 3) and the segment blocks (E, 6, 6) of K and C over the nodes ``[a, b]``."""
+        if len(self.hinges):  # run.prepare refuses implicit and static Kirchhoff runs
+            raise NotImplementedError("bending hinges have no tangent: Kirchhoff threads are "
+                                      "integrated explicitly")
         vv = v.reshape(-1, 3)
         a, b = self.segments[:, 0], self.segments[:, 1]
         n, g_b, K_bb, C_bb = cable_tangents(x[a], x[b], vv[a], vv[b], self.rest_length, self.EA,
@@ -232,8 +261,10 @@ class LumpedModel:
         return cached
 
 
-def build_lumped(scene: Scene, structure: Structure) -> LumpedModel:
-    """The lumped model of a scene (masses (S1), springs (S3), supports, gravity, loads)."""
+def build_lumped(scene: Scene, structure: Structure, hinges: Hinges | None = None) -> LumpedModel:
+    """The lumped model of a scene (masses (S1), springs (S3), supports, gravity, loads), with the
+    bending ``hinges`` of Kirchhoff threads (:func:`rodnet.formulations.kirchhoff.hinges_of`)
+    when given."""
     materials = scene.materials
     rho_a = np.array([m.rhoA for m in materials])[structure.material]
     seg_mass = rho_a * structure.rest_length
@@ -260,9 +291,11 @@ def build_lumped(scene: Scene, structure: Structure) -> LumpedModel:
         gravity_force=mass[:, None] * np.asarray(scene.simulation.gravity)[None, :],
         load_nodes=load_nodes,
         load_force=np.array([l.force for l in scene.loads], float).reshape(-1, 3),
-        load_ramp=np.array([l.ramp for l in scene.loads], float))
+        load_ramp=np.array([l.ramp for l in scene.loads], float),
+        **({} if hinges is None else {"hinges": hinges.nodes, "hinge_stiffness": hinges.stiffness,
+                                      "hinge_tau": hinges.tau, "hinge_rest": hinges.rest}))
     for name in ("mass", "inv_mass", "EA", "etaA", "gravity_force", "load_nodes", "load_force",
-                 "load_ramp"):
+                 "load_ramp", "hinges", "hinge_stiffness", "hinge_tau", "hinge_rest"):
         getattr(model, name).setflags(write=False)
     if not math.isfinite(model.stable_step()):
         raise SceneError("supports", [s.node for s in scene.supports],
