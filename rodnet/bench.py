@@ -619,6 +619,13 @@ def bench(folder: Path, quick: bool = False, only: str | None = None,
         keep = [r for r in study.runs if only in r.curve] 
         needed = {lbl for lbl in study.references.values()}
         study.runs = keep + [r for r in study.runs if r.label in needed and r not in keep]
+    return write_outputs(study, run_study(study, folder, limit), folder)
+
+
+def run_study(study: Study, folder: Path, limit: float | None = None) -> dict[str, dict[str, Any]]:
+    """Every run of ``study`` by :func:`run_one` (stored in ``folder/runs``, reused on a rerun),
+    with a progress line per run on stderr; returns the records by label. A run still going
+    after ``limit`` wall seconds is interrupted and reported as such."""
     records = {}
     for k, run in enumerate(study.runs, 1):
         print(f"rodnet bench: [{k}/{len(study.runs)}] {run.curve}, {run.setting} ...", file=sys.stderr, flush=True)
@@ -626,4 +633,4 @@ def bench(folder: Path, quick: bool = False, only: str | None = None,
         s = records[run.label]["summary"]
         print(f"rodnet bench:     {s.get('status')} in {_fmt(records[run.label].get('process_wall_s'))} s",
               file=sys.stderr, flush=True)
-    return write_outputs(study, records, folder)
+    return records

@@ -33,6 +33,11 @@ class Hinges(NamedTuple):
     tau: NDArray[np.float64]
     rest: NDArray[np.float64]
 
+    @classmethod
+    def none(cls) -> Hinges:
+        """No hinges: the lumped model and cables."""
+        return cls(np.zeros((0, 3), np.int64), np.zeros(0), np.zeros(0), np.zeros((0, 2)))
+
 
 def hinges_of(scene: Scene, structure: Structure) -> Hinges:
     """A hinge at the shared node of every two consecutive segments of a thread (K1).

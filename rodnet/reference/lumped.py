@@ -55,10 +55,9 @@ class LumpedModel:
         mass * g [N].
     load_nodes : (L,) int, load_force : (L, 3) float, load_ramp : (L,) float
         Dead point loads [N] and their ramp times [s] (0: applied at once).
-    hinges : (H, 3) int, hinge_stiffness : (H,) float, hinge_tau : (H,) float, hinge_rest : (H, 2) float
-        Bending hinges of Kirchhoff threads, ``elements/kirchhoff/FORMULATION.md`` (K1): nodes
-        ``a, b, c``, ``k_h = EI / lbar`` [N m], retardation time [s], rest lengths of their two
-        segments [m]. No rows for the lumped model and cables.
+    hinges : Hinges
+        Bending hinges of Kirchhoff threads, ``elements/kirchhoff/FORMULATION.md`` (K1)
+        (:class:`rodnet.formulations.kirchhoff.Hinges`); none for the lumped model and cables.
     """
 
     structure: Structure
@@ -72,11 +71,7 @@ class LumpedModel:
     load_nodes: NDArray[np.int64]
     load_force: FloatArray
     load_ramp: FloatArray
-    hinges: NDArray[np.int64] = field(default_factory=lambda: np.zeros((0, 3), np.int64),
-                                      kw_only=True)
-    hinge_stiffness: FloatArray = field(default_factory=lambda: np.zeros(0), kw_only=True)
-    hinge_tau: FloatArray = field(default_factory=lambda: np.zeros(0), kw_only=True)
-    hinge_rest: FloatArray = field(default_factory=lambda: np.zeros((0, 2)), kw_only=True)
+    hinges: Hinges = field(default_factory=Hinges.none, kw_only=True)
 
     @property
     def segments(self) -> NDArray[np.int64]:
@@ -119,9 +114,9 @@ class LumpedModel:
         _, direction, e, rate = self.segment_kinematics(x, v)
         n = axial_force(e, rate, self.EA, self.etaA, self.kink_strain, self.tension_only)
         f = self._incidence @ (n[:, None] * direction)
-        if len(self.hinges):
-            f += hinge_force(x, v, self.hinges, self.hinge_stiffness, self.hinge_tau,
-                             self.hinge_rest)
+        if len(self.hinges.nodes):
+            h = self.hinges
+            f += hinge_force(x, v, h.nodes, h.stiffness, h.tau, h.rest)
         return f
 
     def force(self, x: FloatArray, v: FloatArray, t: float) -> FloatArray:
@@ -144,16 +139,16 @@ class LumpedModel:
         """The model's arrays in the order the compiled kernels take them (after the state)."""
         return (self.segments, self.rest_length, self.EA, self.etaA, self.kink_strain,
                 self.tension_only, self.gravity_force, self.load_nodes, self.load_force,
-                self.load_ramp, self.hinges, self.hinge_stiffness, self.hinge_tau, self.hinge_rest)
+                self.load_ramp, *self.hinges)
 
     def energy(self, x: FloatArray, v: FloatArray, t: float) -> dict[str, float]:
         """Kinetic, elastic and external-load potential energy [J], (S8); elastic includes the
         hinges' bending energy (K2)."""
         _, _, e, _ = self.segment_kinematics(x, v)
         elastic = axial_energy(e, self.EA, self.rest_length, self.kink_strain, self.tension_only)
-        if len(self.hinges):
-            elastic = np.append(elastic, hinge_energy(x, self.hinges, self.hinge_stiffness,
-                                                                self.hinge_rest))
+        if len(self.hinges.nodes):
+            h = self.hinges
+            elastic = np.append(elastic, hinge_energy(x, h.nodes, h.stiffness, h.rest))
         kinetic = 0.5 * np.sum(self.mass * np.einsum("ij,ij->i", v, v))
         potential = -float(np.sum(self.external_force(t) * x))
         return {"kinetic": float(kinetic), "elastic": float(elastic.sum()), "potential": potential}
@@ -169,9 +164,10 @@ class LumpedModel:
         a, b = self.segments[:, 0], self.segments[:, 1]
         k = self.EA / self.rest_length
         omega2 = 2.0 * k * (self.inv_mass[a] + self.inv_mass[b])
-        if len(self.hinges):
-            omega2 = omega2 + 4.0 * np.max(hinge_frequency(
-                self.hinges, self.hinge_stiffness, self.hinge_rest, self.inv_mass)) ** 2
+        if len(self.hinges.nodes):
+            h = self.hinges
+            omega2 = omega2 + 4.0 * np.max(hinge_frequency(h.nodes, h.stiffness, h.rest,
+                                                           self.inv_mass)) ** 2
         omega = np.sqrt(omega2)
         return float(np.min(damped_limit(omega, self.etaA / self.EA), initial=np.inf))
 
@@ -212,7 +208,7 @@ class LumpedModel:
     def tangent_blocks(self, x: FloatArray, v: FloatArray, t: float, load_factor: float = 1.0,
                        ) -> tuple[FloatArray, FloatArray, FloatArray]:
         """g (N, 3) and the segment blocks (E, 6, 6) of K and C over the nodes ``[a, b]``."""
-        if len(self.hinges):  # run.prepare refuses implicit and static Kirchhoff runs
+        if len(self.hinges.nodes):  # run.prepare refuses implicit and static Kirchhoff runs
             raise NotImplementedError("bending hinges have no tangent: Kirchhoff threads are "
                                       "integrated explicitly")
         vv = v.reshape(-1, 3)
@@ -292,11 +288,11 @@ def build_lumped(scene: Scene, structure: Structure, hinges: Hinges | None = Non
         load_nodes=load_nodes,
         load_force=np.array([l.force for l in scene.loads], float).reshape(-1, 3),
         load_ramp=np.array([l.ramp for l in scene.loads], float),
-        **({} if hinges is None else {"hinges": hinges.nodes, "hinge_stiffness": hinges.stiffness,
-                                      "hinge_tau": hinges.tau, "hinge_rest": hinges.rest}))
-    for name in ("mass", "inv_mass", "EA", "etaA", "gravity_force", "load_nodes", "load_force",
-                 "load_ramp", "hinges", "hinge_stiffness", "hinge_tau", "hinge_rest"):
-        getattr(model, name).setflags(write=False)
+        hinges=Hinges.none() if hinges is None else hinges)
+    for array in (*(getattr(model, name) for name in ("mass", "inv_mass", "EA", "etaA",
+                                                      "gravity_force", "load_nodes", "load_force",
+                                                      "load_ramp")), *model.hinges):
+        array.setflags(write=False)
     if not math.isfinite(model.stable_step()):
         raise SceneError("supports", [s.node for s in scene.supports],
                          "every node is supported: nothing can move")

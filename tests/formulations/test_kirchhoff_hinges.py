@@ -13,6 +13,7 @@ from rodnet.kernels.lumped_explicit import accumulate_forces
 from rodnet.run import prepare
 from rodnet.scene import scene_from_toml
 from tests.conftest import small_net_toml
+from tests.validation.test_kirchhoff import BEAM
 
 KIRCHHOFF = ["model.type=kirchhoff", "model.knots=pinned"]
 
@@ -93,14 +94,14 @@ def test_a_hinge_at_every_node_inside_a_thread() -> None:
     for n in (1, 2, 4):
         p = prepare(scene_from_toml(small_net_toml(n=n), KIRCHHOFF))
         s = p.structure
-        hinges = p.model.hinges
+        hinges = p.model.hinges.nodes
         n_threads = len(np.unique(s.thread))
         assert len(hinges) == n_threads * (n - 1)
         pairs = {tuple(seg): i for i, seg in enumerate(s.segments.tolist())}
         first = np.array([pairs[(a, b)] for a, b, _ in hinges.tolist()], dtype=int)
         second = np.array([pairs[(b, c)] for _, b, c in hinges.tolist()], dtype=int)
         assert np.all(s.thread[first] == s.thread[second])
-        np.testing.assert_array_equal(p.model.hinge_rest, s.rest_length[np.c_[first, second]])
+        np.testing.assert_array_equal(p.model.hinges.rest, s.rest_length[np.c_[first, second]])
         knots = set(s.selectors[k] for k in s.selectors if k.startswith("net:knot:"))
         assert not knots & set(hinges[:, 1].tolist())
 
@@ -115,38 +116,10 @@ def test_refused_scenes_name_the_key(override: str, key: str) -> None:
         prepare(scene_from_toml(small_net_toml(), [*KIRCHHOFF, override]))
 
 
-ROD = """
-[simulation]
-type = "dynamic"
-duration = 0.01
-integrator = "explicit"
-
-[model]
-type = "kirchhoff"
-
-[[materials]]
-name = "steel"
-density = 7800.0
-youngs_modulus = 2.0e11
-diameter = 0.01
-
-[[rods]]
-name = "beam"
-material = "steel"
-points = {points}
-elements = 4
-
-[[supports]]
-node = "beam:start"
-{fix}
-"""
-
-
 def test_clamps_and_bent_rods_are_refused() -> None:
-    straight = "[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]"
+    beam = BEAM.format(duration=0.01, elements=4, frame_interval=0.01)
     with pytest.raises(SceneError, match=r"supports\[0\]\.fix"):
-        prepare(scene_from_toml(ROD.format(points=straight, fix='fix = "clamp"')))
+        prepare(scene_from_toml(beam, ['supports[0].fix="clamp"']))
     with pytest.raises(SceneError, match=r"rods\[0\]\.points"):
-        prepare(scene_from_toml(ROD.format(points="[[0.0, 0.0, 0.0], [0.5, 0.0, 0.0], [1.0, 0.5, 0.0]]",
-                                           fix='fix = "pin"')))
-    prepare(scene_from_toml(ROD.format(points=straight, fix='fix = "pin"')))
+        prepare(scene_from_toml(beam, ["rods[0].points=[[0.0, 0.0, 0.0], [0.5, 0.0, 0.0], [1.0, 0.5, 0.0]]"]))
+    prepare(scene_from_toml(beam))

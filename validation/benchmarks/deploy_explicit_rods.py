@@ -26,7 +26,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from rodnet.bench import BenchRun, Study, perturbed, run_one, write_outputs
+from rodnet.bench import BenchRun, Study, perturbed, run_study, write_outputs
 
 HERE = Path(__file__).parent
 FOLDER = HERE / "results" / "deploy_explicit_rods"
@@ -124,7 +124,7 @@ def study() -> Study:
 
 def main() -> str:
     s = study()
-    records = {run.label: run_one(run, FOLDER) for run in s.runs}
+    records = run_study(s, FOLDER)
     return write_outputs(s, records, FOLDER)
 
 

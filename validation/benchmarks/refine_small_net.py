@@ -20,7 +20,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from rodnet.bench import BenchRun, Study, errors, perturbed, run_one, write_outputs
+from rodnet.bench import BenchRun, Study, errors, perturbed, run_study, write_outputs
 
 FOLDER = Path(__file__).parent / "results" / "refine_small_net"
 BASE = ("net.nodes_per_side=5", "net.mesh_length=1.0", "net.corner_mass=0.2", "net.launch_speed=10.0",
@@ -94,7 +94,7 @@ def plot(s: Study, records: dict[str, dict[str, Any]], path: Path) -> None:
 
 def main() -> str:
     s = study()
-    records = {run.label: run_one(run, FOLDER) for run in s.runs}
+    records = run_study(s, FOLDER)
     text = write_outputs(s, records, FOLDER)
     (FOLDER / "work_precision.png").unlink()
     plot(s, records, FOLDER / "refinement.png")
