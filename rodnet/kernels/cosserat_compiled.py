@@ -378,7 +378,7 @@ def _resultants(stiffness, tau, rest_length, e, eps, rate, psi, phi, tension_onl
     return (N0, N1, N2, M0, M1, M2), D0, V0
 
 
-@numba.njit(cache=True, parallel=True)
+@numba.njit(inline="always")
 def _state_and_force(rest_length, reference_strain, stiffness, tau, x, q, velocity, tension_only,
                      kink, series, beta_angle, gamma_angle, force, psi_out, R_out, g_out,
                      coefficients, constitutive, velocity9, monitor_out):  # pragma: no cover - compiled
@@ -441,7 +441,7 @@ def _state_and_force(rest_length, reference_strain, stiffness, tau, x, q, veloci
             velocity9[e, 6], velocity9[e, 7], velocity9[e, 8] = b0, b1, b2
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, parallel=True)
 def _internal_force_kernel(rest_length, reference_strain, stiffness, tau, x, q, velocity,
                            tension_only, kink, series, beta_angle,
                            gamma_angle):  # pragma: no cover - compiled
@@ -454,7 +454,7 @@ def _internal_force_kernel(rest_length, reference_strain, stiffness, tau, x, q, 
     return force
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, parallel=True)
 def _internal_force_and_tangents_kernel(rest_length, reference_strain, stiffness, tau, x, q,
                                         velocity, tension_only, kink, series, beta_angle,
                                         gamma_angle, force, stiffness_out,
@@ -525,7 +525,7 @@ def _stress_resultants_kernel(stiffness, tau, strain, strain_rate, tension_only,
 # explicit step loop (FORMULATION.md §9b, (C46)-(C47)); driven by rodnet.integrate.explicit_rods
 
 
-@numba.njit(cache=True, parallel=True)
+@numba.njit(inline="always")
 def _gather_element_state(x, quat, v, W, pos_nodes, rot_nodes, offset_q, offset_R, xe, qe,
                           ve):  # pragma: no cover - compiled
     """Element end positions ``xe`` (E, 2, 3), material quaternions ``qe`` (E, 2, 4) and velocities
@@ -597,7 +597,7 @@ def _nodal_forces(t, quat, pos_nodes, rot_nodes, offset_R, force, weight, load_n
                     m_node[r, k] -= force[e, c + 3 + k]
 
 
-@numba.njit(cache=True, parallel=True)
+@numba.njit(inline="always")
 def _update_explicit(x, quat, v, W, f_node, m_node, inv_mass, inertia, inv_inertia,
                      h):  # pragma: no cover - compiled
     """One symplectic Euler update (C46), (C47) in place; False when the state became
@@ -640,7 +640,7 @@ def _update_explicit(x, quat, v, W, f_node, m_node, inv_mass, inertia, inv_inert
     return bad == 0
 
 
-@numba.njit(cache=True)
+@numba.njit(inline="always")
 def _element_forces(x, quat, v, W, pos_nodes, rot_nodes, offset_q, offset_R, rest_length,
                     reference_strain, stiffness, tau, tension_only, kink, series, beta_angle,
                     gamma_angle, xe, qe, ve, force, monitor):  # pragma: no cover - compiled
@@ -672,7 +672,7 @@ def _step_length(base, phi, angles, step_factor, t, t_end):  # pragma: no cover 
     return h, h, False
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, parallel=True)
 def _advance_explicit(x, quat, v, W, t0, t_end, h0, pos_nodes, rot_nodes, offset_q, offset_R,
                       rest_length, reference_strain, stiffness, tau, tension_only, kink, series,
                       beta_angle, gamma_angle, angles, step_factor, inv_mass, inertia,

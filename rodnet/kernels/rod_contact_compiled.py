@@ -26,7 +26,7 @@ from rodnet.kernels.cosserat_compiled import (_element_forces, _nodal_forces, _s
                                               _update_explicit)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, parallel=True)
 def advance_rods_contact(x, quat, v, W, t0, t_end, h0, near_h, min_h,
                          pos_nodes, rot_nodes, offset_q, offset_R, rest_length, reference_strain,
                          stiffness, tau, tension_only, kink, series, beta_angle, gamma_angle,
