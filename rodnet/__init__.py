@@ -1,6 +1,11 @@
 """rodnet: tether-net simulation with Cosserat rod elements and a lumped-parameter reference."""
 
-from rodnet.config import Scene as Scene
+# before numba starts its threads: how idle threads wait, which threading layer (kernels.threads)
+from rodnet.kernels import threads as _threads
+
+_threads.configure()
+
+from rodnet.config import Scene as Scene  # noqa: E402
 from rodnet.errors import SceneError as SceneError
 from rodnet.errors import SimulationFailed as SimulationFailed
 from rodnet.run import RunResult as RunResult
