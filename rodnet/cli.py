@@ -14,6 +14,9 @@ EXIT_BAD_INPUT, EXIT_FAILED, EXIT_INTERRUPTED = 2, 1, 130
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="rodnet", description=(
         "Tether-net simulation: Cosserat rod threads and a lumped-parameter reference."))
+    from rodnet import __version__
+
+    parser.add_argument("--version", action="version", version=f"rodnet {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="run a scene file")
     run.add_argument("scene", type=Path, help="scene TOML file")
@@ -42,7 +45,21 @@ def _parser() -> argparse.ArgumentParser:
         p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                        help="override a scene key, e.g. --set simulation.dt=5e-4 (repeatable)")
         p.add_argument("--quiet", action="store_true", help="no progress line")
+        p.add_argument("--threads", type=_positive_int, default=None, metavar="N",
+                       help="threads of the compiled loops (default: one for small problems, "
+                       "every core, or NUMBA_NUM_THREADS, from 150 elements on; 1 on a shared machine)")
     return parser
+
+
+def _positive_int(text: str) -> int:
+    """An integer >= 1 (an argparse type)."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 1, not {text!r}")
+    return value
 
 
 def demo_scene_text() -> str:
@@ -54,14 +71,19 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit status (0 ok, 1 failed run, 2 bad input, 130 interrupted)."""
     args = _parser().parse_args(argv)
     if args.command == "validate":
-        status = _validate(args.cases, args.output, args.fast)
-        if not args.no_tests and not args.fast and Path("tests/validation").is_dir():
+        status, verdict = _validate(args.cases, args.output, args.fast)
+        if status != EXIT_BAD_INPUT and not args.no_tests and not args.fast \
+                and Path("tests/validation").is_dir():
             import subprocess
 
             print("rodnet: running the slow validation tests (pytest -m slow tests/validation)",
                   file=sys.stderr)
             done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-m", "slow", "tests/validation"])
-            status = status or (0 if done.returncode in (0, 5) else EXIT_FAILED)
+            tests_ok = done.returncode in (0, 5)
+            status = status or (0 if tests_ok else EXIT_FAILED)
+            verdict += "; slow validation tests " + ("passed" if tests_ok else "FAILED")
+        if verdict:
+            print(f"rodnet validate: {'PASSED' if status == 0 else 'FAILED'}: {verdict}")
         return status
     if args.command == "bench":
         from rodnet.bench import bench
@@ -78,7 +100,8 @@ def main(argv: list[str] | None = None) -> int:
             scene = load_scene(args.scene, args.overrides)
         from rodnet.run import run
 
-        result = run(scene, args.output, progress=False if args.quiet else None)
+        result = run(scene, args.output, progress=False if args.quiet else None,
+                     threads=args.threads)
     except SceneError as exc:
         print(f"rodnet: bad input: {exc}. Nothing was run and no output was written.", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -95,8 +118,9 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def _validate(cases: Path, output: Path, fast: bool) -> int:
-    """Run every case under ``cases``; write ``output/validation.md``; 0 when all checks pass."""
+def _validate(cases: Path, output: Path, fast: bool) -> tuple[int, str]:
+    """Run every case under ``cases``; write ``output/validation.md``. Returns the exit status
+    (0 when all checks pass) and the verdict: how many checks passed, where the report is."""
     import tempfile
 
     from rodnet.validate import case_folders, read_expected, report, run_case
@@ -105,7 +129,7 @@ def _validate(cases: Path, output: Path, fast: bool) -> int:
     if not folders:
         print(f"rodnet: bad input: no validation cases (scene.toml + expected.toml) under {cases}",
               file=sys.stderr)
-        return EXIT_BAD_INPUT
+        return EXIT_BAD_INPUT, ""
     results, failed_runs = [], []
     for folder in folders:
         print(f"rodnet: validating {folder.name} ...", file=sys.stderr)
@@ -119,7 +143,12 @@ def _validate(cases: Path, output: Path, fast: bool) -> int:
     print(text)
     for line in failed_runs:
         print(f"rodnet: run failed: {line}", file=sys.stderr)
-    return 0 if all(r.passed for r in results) and not failed_runs else EXIT_FAILED
+    passed = sum(r.passed for r in results)
+    ok = passed == len(results) and not failed_runs
+    verdict = (f"{passed} of {len(results)} checks passed in {len(folders)} cases"
+               + (f", {len(failed_runs)} runs failed" if failed_runs else "")
+               + f"; report in {output / 'validation.md'}")
+    return (0 if ok else EXIT_FAILED), verdict
 
 
 def _report(result) -> None:  # type: ignore[no-untyped-def]
@@ -128,7 +157,9 @@ def _report(result) -> None:  # type: ignore[no-untyped-def]
         print(f"rodnet: the run failed: {result.message}. The {s['frames']} frames computed up to "
               f"t = {s['simulated_time_s']:.4g} s are in {result.directory}/.", file=sys.stderr)
         return
-    print(f"rodnet: done in {s['wall_time_s']:.2f} s wall, {s['steps']} steps; results in "
+    work = (f" ({s['newton_iterations']} Newton iterations, {s['rejected_steps']} rejected)"
+            if s["newton_iterations"] else "")
+    print(f"rodnet: done in {s['wall_time_s']:.2f} s wall, {s['steps']} steps{work}; results in "
           f"{result.directory}/")
     for key, value in s["metrics"].items():
         print(f"  {key:28s} {value:.6g}")

@@ -21,9 +21,10 @@ from rodnet.contact.bodies import check_contact_supported
 from rodnet.contact.output import ContactLog, body_surfaces
 from rodnet.errors import SceneError, SimulationFailed
 from rodnet.integrate.frames import StepStats, frame_times
-from rodnet.io.results import scene_as_dict, write_npz, write_summary
+from rodnet.io.results import output_directory, scene_as_dict, write_npz, write_summary
 from rodnet.io.vtk import VtkSeries
 from rodnet.kernels.cosserat_strain import ROTATION_STOP
+from rodnet.kernels.threads import use_threads
 from rodnet.metrics import distance, mouth_area, net_metrics
 from rodnet.progress import Progress
 from rodnet.formulations.cosserat_build import build_cosserat
@@ -250,7 +251,7 @@ class RunResult:
 
 
 def run(scene: Scene, directory: str | Path | None = None, *, progress: bool | None = None,
-        after: Callable[[RunResult], None] | None = None) -> RunResult:
+        after: Callable[[RunResult], None] | None = None, threads: int | None = None) -> RunResult:
     """Run ``scene`` and write its results to ``directory`` (default: ``output.directory``).
 
     Parameters
@@ -259,10 +260,14 @@ def run(scene: Scene, directory: str | Path | None = None, *, progress: bool | N
         Show the progress line; default: only when standard error is a terminal.
     after : callable, optional
         Called with the result once the files are written (pictures, plots).
+    threads : int, optional
+        Threads of the compiled parallel loops; default: :func:`rodnet.kernels.threads.use_threads`
+        chooses from the problem size.
     """
     prepared = prepare(scene)
-    out = Path(directory if directory is not None else scene.output.directory)
-    out.mkdir(parents=True, exist_ok=True)
+    n_threads = use_threads(len(prepared.structure.segments), threads)
+    out = output_directory(directory if directory is not None else scene.output.directory,
+                           "output.directory" if directory is None else "-o (output directory)")
     vtk = VtkSeries(out, prepared.structure.segments, body_surfaces(prepared.model)) \
         if scene.output.vtk else None
     unloaded = not any(scene.simulation.gravity) and not scene.loads
@@ -286,6 +291,7 @@ def run(scene: Scene, directory: str | Path | None = None, *, progress: bool | N
         arrays = recorder.arrays(prepared.structure)
         summary = _summary(prepared, arrays, stats, status, message, wall,
                            recorder.max_element_rotation)
+        summary["threads"] = n_threads
         if log is not None:
             log.add_results(arrays, summary)
         write_npz(out / "result.npz", arrays)
@@ -321,6 +327,24 @@ def _integrate(p: Prepared, recorder: Recorder, bar: Progress, stats: StepStats)
     stepper = Stepper(p.model, p.scene.integrator, sim.rho_inf, options)
     return integrate_implicit(stepper, p.q0, p.v0, p.times, p.dt, sim.adaptive, recorder, bar,
                               dt_max=sim.dt_max, error_tolerance=sim.error_tolerance, stats=stats)
+
+
+ROTATION_KEYS = ("model.bending", "model.torsion", "model.knots", "model.shear_correction",
+                 "simulation.rotary_inertia_scaling")
+"""Keys that only rod elements with rotations read."""
+
+
+def unused_keys(scene: Scene) -> tuple[str, ...]:
+    """The scene keys that have no effect on the run of ``scene``'s model (left out of
+    ``summary.json``): the rotation keys for the lumped model, cable threads (Cosserat threads
+    without bending and torsion) and Kirchhoff threads (whose bending is ``model.bending`` and
+    whose knots must be pinned), and ``rotary_inertia_scaling`` for implicit rods."""
+    model = scene.model
+    if model.type == "lumped" or (model.type == "cosserat" and not (model.bending or model.torsion)):
+        return ROTATION_KEYS
+    if model.type == "kirchhoff":
+        return tuple(k for k in ROTATION_KEYS if k not in ("model.bending", "model.knots"))
+    return ("simulation.rotary_inertia_scaling",) if scene.integrator != "explicit" else ()
 
 
 def _stability_advice(p: Prepared) -> str:
@@ -380,5 +404,6 @@ def _summary(p: Prepared, arrays: dict[str, NDArray[Any]], stats: StepStats, sta
         "model": {"type": p.scene.model.type, "nodes": structure.n_nodes,
                   "elements": len(structure.segments), "dofs": p.model.n_dof},
         "nodes": structure.selectors, "metrics": metrics,
-        "warnings": _warnings(stats, frame_rotation), "scene": scene_as_dict(p.scene),
+        "warnings": _warnings(stats, frame_rotation),
+        "scene": scene_as_dict(p.scene, unused_keys(p.scene)),
     }

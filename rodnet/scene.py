@@ -42,17 +42,19 @@ def load_scene(path: str | Path, overrides: typing.Sequence[str] = ()) -> Scene:
     try:
         text = path.read_text()
     except OSError as exc:
-        raise SceneError("", str(path), f"cannot read the scene file: {exc.strerror}") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise SceneError("", str(path), f"is not valid TOML: {exc}") from None
-    return scene_from_dict(apply_overrides(data, overrides), source=str(path))
+        raise SceneError("", str(path), f"cannot read the scene file {path}: {exc.strerror}") from None
+    except UnicodeDecodeError:
+        raise SceneError("", str(path), f"the scene file {path} is not a text (TOML) file") from None
+    return scene_from_toml(text, overrides, source=str(path))
 
 
 def scene_from_toml(text: str, overrides: typing.Sequence[str] = (), source: str = "<scene>") -> Scene:
-    """Like :func:`load_scene`, from TOML text."""
-    return scene_from_dict(apply_overrides(tomllib.loads(text), overrides), source=source)
+    """Like :func:`load_scene`, from TOML text; ``source`` names it in messages."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError("", source, f"the scene {source} is not valid TOML: {exc}") from None
+    return scene_from_dict(apply_overrides(data, overrides), source=source)
 
 
 def apply_overrides(data: dict[str, Any], overrides: typing.Sequence[str]) -> dict[str, Any]:

@@ -49,3 +49,38 @@ def small_net_toml(duration: float = 0.6, integrator: str = "explicit", n: int =
 @pytest.fixture
 def small_net() -> str:
     return small_net_toml()
+
+
+_IGNORED = {".git", ".venv", "__pycache__", ".pytest_cache", "node_modules"}
+
+
+def _tree(root) -> dict[str, int]:  # type: ignore[no-untyped-def]
+    """Files under ``root`` (paths relative to it) with their modification times [ns], leaving
+    out version control, virtual environments and caches (numba's kernels live in __pycache__)."""
+    import os
+
+    found: dict[str, int] = {}
+    for folder, dirs, files in os.walk(root):
+        dirs[:] = [d for d in dirs if d not in _IGNORED and not d.endswith(".egg-info")]
+        for name in files:
+            path = os.path.join(folder, name)
+            try:
+                found[os.path.relpath(path, root)] = os.stat(path).st_mtime_ns
+            except OSError:
+                continue
+    return found
+
+
+@pytest.fixture(autouse=True)
+def _no_writes_to_the_working_directory():  # type: ignore[no-untyped-def]
+    """Fail a test that creates or changes a file in the working directory (the repository
+    when pytest runs from it): tests write into temporary directories only, so they never
+    overwrite a user's results (``out/`` of ``rodnet demo``) or tracked files."""
+    import os
+
+    cwd = os.getcwd()
+    before = _tree(cwd)
+    yield
+    after = _tree(cwd)
+    changed = sorted(p for p, t in after.items() if before.get(p) != t)
+    assert not changed, f"the test wrote into the working directory {cwd}: {changed[:10]}"

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import os
 from pathlib import Path
 from typing import Any
 
@@ -12,6 +13,25 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rodnet.config import Scene
+from rodnet.errors import SceneError
+
+
+def output_directory(path: str | Path, key: str = "output.directory") -> Path:
+    """Create the output directory ``path`` (and its parents) or raise :class:`SceneError`
+    naming ``key`` when it cannot be used: a file of that name, a parent that is a file, no
+    permission to write there."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise SceneError(key, str(path), "names an existing file, not a directory: choose a "
+                         "directory for the results (it is created when missing)")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise SceneError(key, str(path), f"cannot be created as the output directory: "
+                         f"{exc.strerror}") from None
+    if not os.access(path, os.W_OK | os.X_OK):
+        raise SceneError(key, str(path), "is not writable: choose a directory you may write to")
+    return path
 
 
 def write_npz(path: Path, arrays: dict[str, NDArray[Any]]) -> None:
@@ -21,9 +41,14 @@ def write_npz(path: Path, arrays: dict[str, NDArray[Any]]) -> None:
     tmp.replace(path)
 
 
-def scene_as_dict(scene: Scene) -> dict[str, Any]:
-    """The scene as run, in the TOML layout (unset optional keys left out)."""
+def scene_as_dict(scene: Scene, unused: tuple[str, ...] = ()) -> dict[str, Any]:
+    """The scene as run, in the TOML layout: unset optional keys and the ``unused`` keys
+    (``"section.key"``: keys the run's model has no use for) left out."""
     out = dataclasses.asdict(scene)
+    for dotted in unused:
+        section, key = dotted.split(".")
+        if isinstance(out.get(section), dict):
+            out[section].pop(key, None)
     out.pop("source")
     def clean(value: Any) -> Any:
         if isinstance(value, dict):

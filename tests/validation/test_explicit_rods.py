@@ -247,7 +247,8 @@ vtk = false
 
 
 @pytest.mark.parametrize("integrator", ["explicit", "generalized-alpha"])
-def test_ends_driven_through_each_other_bounce_and_the_thread_holds(integrator: str) -> None:
+def test_ends_driven_through_each_other_bounce_and_the_thread_holds(integrator: str,
+                                                                  tmp_path: Path) -> None:
     """A slack element whose two ends are driven through each other along its axis (chord to
     zero, then reversed: material axis against the chord) is pushed back by (C51), a spring of
     stiffness ``k = REVERSED_STIFFNESS EA / L`` on the reversed chord: the ends, closing at
@@ -257,7 +258,7 @@ def test_ends_driven_through_each_other_bounce_and_the_thread_holds(integrator: 
     apart (the run stops on the inverted element). The step resolves the bounce (symplectic
     Euler's energy error while the ends press stays below the run's 10 % guard)."""
     scene = scene_from_toml(CROSSING.format(integrator=integrator))
-    r = run(scene, progress=False)
+    r = run(scene, tmp_path, progress=False)
     assert r.status == "ok", r.message
     x = r.arrays["positions"]
     separation = x[:, 1, 0] - x[:, 0, 0]           # along the rod's own axis, +x at rest
