@@ -12,10 +12,13 @@ integrator (free bodies move with it only):
   bending and torsion, two elements per thread, pinned or rigid knots, rotary inertia raised
   (FORMULATION C49).
 
-Each run is stored in ``out/bending_<variant>/`` (not in git) and reused on a rerun; the report is
-``bending_capture.md`` and the figure ``docs/img/capture_bending.png``. Usage, from the repository
-root: ``OPENBLAS_NUM_THREADS=1 python validation/cases/capture_reference/bending_capture.py
-[--duration 6] [--only VARIANT]`` (``--report`` writes the report from the stored runs only).
+Everything goes into ``out/`` beside this script (not in git): each run is stored in
+``out/bending_<variant>/`` and reused on a rerun; the report is ``out/bending_capture.md`` and the
+figure ``out/capture_bending.png``. Only with ``--publish`` are the tracked copies written too:
+``bending_capture.md`` beside this script and ``docs/img/capture_bending.png``. Usage, from the
+repository root: ``OPENBLAS_NUM_THREADS=1 .venv/bin/python
+validation/cases/capture_reference/bending_capture.py [--duration 6] [--only VARIANT] [--report]
+[--publish]`` (``--report`` writes the report from the stored runs only).
 """
 
 from __future__ import annotations
@@ -30,13 +33,14 @@ import numpy as np
 HERE = Path(__file__).parent
 sys.path.insert(0, str(HERE))
 
-from study import INSTANTS, NEAR, OUT, RADIUS, scene_text, table  # noqa: E402
+from study import (INSTANTS, NEAR, OUT, RADIUS, publish, report_written,  # noqa: E402
+                   scene_text, table)
 
 from rodnet.kernels import so3  # noqa: E402
 from rodnet.run import prepare, run  # noqa: E402
 from rodnet.scene import scene_from_toml  # noqa: E402
 
-IMG = HERE.parents[2] / "docs" / "img"
+IMG = HERE.parents[2] / "docs" / "img"     # the published figure (``--publish`` only)
 ROD = ("model.type=cosserat", "model.elements_per_thread=2", "simulation.integrator=explicit")
 VARIANTS = {
     "lumped n=1": (),
@@ -126,7 +130,9 @@ def figure(data: dict[str, tuple[dict, dict, dict]], path: Path) -> None:
     plt.close(fig)
 
 
-def report(duration: float) -> str:
+def report(duration: float) -> tuple[str, list[Path]]:
+    """Write ``out/bending_capture.md`` and ``out/capture_bending.png`` from the stored runs;
+    returns the report's text and the files written."""
     data = {}
     for variant in VARIANTS:
         if (folder(variant) / "summary.json").is_file():
@@ -172,9 +178,11 @@ def report(duration: float) -> str:
                        f"{100 * m['knots_near'][f]:.0f} % near" if abs(a["time"][f] - instant) < 0.011
                        else "-")
         state.append(row)
+    written = []
+    OUT.mkdir(parents=True, exist_ok=True)
     if data:
-        IMG.mkdir(parents=True, exist_ok=True)
-        figure(data, IMG / "capture_bending.png")
+        figure(data, OUT / "capture_bending.png")
+        written.append(OUT / "capture_bending.png")
     text = f"""# Capture with and without bending: results
 
 Written by `bending_capture.py` ({duration:g} s, frames every 0.02 s, explicit integrator,
@@ -196,8 +204,8 @@ those of its last saved frame.
 
 {table(state)}
 """
-    (HERE / "bending_capture.md").write_text(text)
-    return text
+    (OUT / "bending_capture.md").write_text(text)
+    return text, [OUT / "bending_capture.md", *written]
 
 
 def main() -> None:
@@ -205,12 +213,23 @@ def main() -> None:
     parser.add_argument("--duration", type=float, default=6.0)
     parser.add_argument("--only", choices=list(VARIANTS), action="append")
     parser.add_argument("--report", action="store_true", help="only write the report")
+    parser.add_argument("--publish", action="store_true",
+                        help="also write the tracked bending_capture.md beside this script and "
+                             "docs/img/capture_bending.png (default: only out/)")
     args = parser.parse_args()
     if not args.report:
         for variant in args.only or VARIANTS:
             if not (folder(variant) / "summary.json").is_file():
                 run_variant(variant, args.duration)
-    print(report(args.duration))
+    text, written = report(args.duration)
+    print(text)
+    published = None
+    if args.publish:
+        tracked = {"bending_capture.md": HERE / "bending_capture.md",
+                   "capture_bending.png": IMG / "capture_bending.png"}
+        published = {p: tracked[p.name] for p in written}
+        publish(published)
+    report_written("bending capture", written, published)
 
 
 if __name__ == "__main__":

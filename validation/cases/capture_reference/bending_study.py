@@ -7,24 +7,31 @@ integrator only. This study shrinks it: a 7 x 7 Kevlar net (0.5 m mesh, 0.2 kg c
 1.6 m length whose centre is 2.5 m down-range, its axis across the shot, friction 0.3, for
 ``--duration`` s. Two variants, both generalized-alpha (rho_inf = 0, error-controlled adaptive
 steps): Cosserat threads with bending and torsion (pinned knots) and cable threads (bending and
-torsion off). Writes ``bending_results.md``.
+torsion off). The runs go to a temporary folder; the table is written to
+``out/bending_results.md`` beside this script (not in git), and only with ``--publish`` also to the
+tracked ``bending_results.md`` beside this script.
 
-Usage, from the repository root: ``OPENBLAS_NUM_THREADS=1 python
-validation/cases/capture_reference/bending_study.py [--duration 0.8]``.
+Usage, from the repository root: ``OPENBLAS_NUM_THREADS=1 .venv/bin/python
+validation/cases/capture_reference/bending_study.py [--duration 0.8] [--publish]``.
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
 
-from rodnet.run import RunResult, run
-from rodnet.scene import scene_from_toml
-
 HERE = Path(__file__).parent
+sys.path.insert(0, str(HERE))
+
+from study import OUT, publish, report_written  # noqa: E402
+
+from rodnet.run import RunResult, run  # noqa: E402
+from rodnet.scene import scene_from_toml  # noqa: E402
+
 RADIUS, LENGTH, DISTANCE = 0.3, 1.6, 2.5
 
 SCENE = f"""
@@ -114,6 +121,9 @@ def measures(r: RunResult) -> dict[str, float]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--duration", type=float, default=0.8)
+    parser.add_argument("--publish", action="store_true",
+                        help="also write the tracked bending_results.md beside this script "
+                             "(default: only out/bending_results.md)")
     args = parser.parse_args()
     rows: dict[str, dict[str, float]] = {}
     for name, overrides in VARIANTS.items():
@@ -130,8 +140,13 @@ def main() -> None:
     for key in keys:
         cells = [f"{v:.4g}" if isinstance(v, float) else str(v) for v in (rows[n][key] for n in rows)]
         lines.append(f"| {key} | " + " | ".join(cells) + " |")
-    (HERE / "bending_results.md").write_text("\n".join(lines) + "\n")
+    OUT.mkdir(parents=True, exist_ok=True)
+    (OUT / "bending_results.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
+    published = {OUT / "bending_results.md": HERE / "bending_results.md"} if args.publish else None
+    if published:
+        publish(published)
+    report_written("reduced bending capture", [OUT / "bending_results.md"], published)
 
 
 if __name__ == "__main__":

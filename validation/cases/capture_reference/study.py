@@ -10,15 +10,19 @@ of it, measure how far a change of the target of that size moves the capture. A 
 runs measures what contact costs while the target is far: the 3 s reference deployment without a
 body and with the cylinder 100 m down-range.
 
-Writes ``out/`` (runs and the STL, not kept in git), ``results.md`` (the tables) and the figures
-``docs/img/capture_shapes.png`` and ``docs/img/capture_history.png``. Usage, from the repository
-root, with one BLAS thread (``OPENBLAS_NUM_THREADS=1``):
-``python validation/cases/capture_reference/study.py [--duration 6] [--repeats 3]``.
+Writes everything into ``out/`` beside this script (not kept in git): the runs, their scenes, the
+STL, ``results.md`` (the tables) and the figures ``capture_shapes.png`` and
+``capture_history.png``. Only with ``--publish`` does it also write the tracked copies:
+``results.md`` beside this script and ``docs/img/capture_shapes.png``,
+``docs/img/capture_history.png``. Usage, from the repository root, with one BLAS thread:
+``OPENBLAS_NUM_THREADS=1 .venv/bin/python validation/cases/capture_reference/study.py
+[--duration 6] [--repeats 3] [--publish]``.
 """
 
 from __future__ import annotations
 
 import argparse
+import shutil
 import time
 from pathlib import Path
 from typing import Any
@@ -32,8 +36,8 @@ from rodnet.run import RunResult, prepare, run
 from rodnet.scene import load_scene, scene_from_toml
 
 HERE = Path(__file__).parent
-OUT = HERE / "out"
-IMG = HERE.parents[2] / "docs" / "img"
+OUT = HERE / "out"                         # everything the study writes (not kept in git)
+IMG = HERE.parents[2] / "docs" / "img"     # the published figures (``--publish`` only)
 RADIUS, LENGTH, MASS = 1.2, 6.5, 1400.0
 SECTIONS = 64                              # facets around the STL cylinder
 FACETING = RADIUS * (1.0 - np.cos(np.pi / SECTIONS))   # m: the facets' largest distance to it
@@ -250,10 +254,31 @@ def at(result: RunResult, key: str, instant: float) -> np.ndarray:
     return result.arrays[key][f]
 
 
+def publish(files: dict[Path, Path]) -> None:
+    """Copy each written file (key) to its tracked place (value)."""
+    for source, target in files.items():
+        target.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(source, target)
+
+
+def report_written(name: str, written: list[Path], published: dict[Path, Path] | None) -> None:
+    """Print where the results were written and, with ``--publish``, where they were copied."""
+    print(f"{name}: results written to {OUT}/: " + ", ".join(p.name for p in written))
+    if published:
+        print(f"{name}: published (tracked files rewritten): "
+              + ", ".join(str(p) for p in published.values()))
+    else:
+        print(f"{name}: tracked files left unchanged (rerun with --publish to rewrite them)")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--duration", type=float, default=6.0)
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--publish", action="store_true",
+                        help="also write the tracked results.md beside this script and "
+                             "docs/img/capture_shapes.png, docs/img/capture_history.png "
+                             "(default: only out/)")
     args = parser.parse_args()
     write_stl()
     results, walls, measures = {}, {}, {}
@@ -272,11 +297,18 @@ def main() -> None:
     free_wall, free_steps = deployment_wall(None, args.repeats, args.duration)
     far_wall, far_steps = deployment_wall("cylinder", args.repeats, 3.0)
     base_wall, base_steps = deployment_wall(None, args.repeats, 3.0)
-    IMG.mkdir(parents=True, exist_ok=True)
-    shapes_figure(results["cylinder"], IMG / "capture_shapes.png")
-    history_figure(results, measures, IMG / "capture_history.png")
+    OUT.mkdir(parents=True, exist_ok=True)
+    shapes_figure(results["cylinder"], OUT / "capture_shapes.png")
+    history_figure(results, measures, OUT / "capture_history.png")
     write_results(results, walls, measures, (free_wall, free_steps),
                   (base_wall, base_steps, far_wall, far_steps), args.duration, perturbed)
+    written = [OUT / "results.md", OUT / "capture_shapes.png", OUT / "capture_history.png"]
+    published = None
+    if args.publish:
+        published = {written[0]: HERE / "results.md", written[1]: IMG / "capture_shapes.png",
+                     written[2]: IMG / "capture_history.png"}
+        publish(published)
+    report_written("capture study", written, published)
 
 
 def faceting_table(results: dict[str, RunResult], perturbed: dict[str, RunResult]) -> str:
@@ -310,7 +342,7 @@ def write_results(results: dict[str, RunResult], walls: dict[str, tuple[float, .
                   measures: dict[str, dict[str, np.ndarray]], free: tuple[float, int],
                   far: tuple[float, int, float, int], duration: float,
                   perturbed: dict[str, RunResult]) -> None:
-    """results.md: the tables of the study."""
+    """``out/results.md``: the tables of the study (``--publish`` copies it beside the script)."""
     per_step = free[0] / free[1]   # the loop without contact, per step
     rows = [["target", "steps", "smallest step [s]", "wall, no VTK [s]", "of which: frames [s]",
              "loop without contact (est.) [s]", "contact (rest) [s]", "wall with VTK [s]",
@@ -401,7 +433,8 @@ The STL's facets lie between the cylinder's radius and {1000 * FACETING:.2f} mm 
 
 {faceting_table(results, perturbed)}
 """
-    (HERE / "results.md").write_text(text)
+    OUT.mkdir(parents=True, exist_ok=True)
+    (OUT / "results.md").write_text(text)
     print(text)
 
 

@@ -8,10 +8,13 @@ physics with implicit integration). The braided thread keeps the solid section's
 stiffness but only ``BRAIDED`` of its bending and torsional stiffness (a braid's fibres slide on
 each other in bending; the fraction is a documented assumption, not a measurement).
 
-Writes ``out/<variant>/`` (the runs, not kept in git; a rerun with ``--reuse`` reads them instead
-of running again), ``results.md`` (the table) and the figures ``docs/img/bending_*.png``; with
-``--explicit``, ``out_explicit_n<n>/``, ``results_explicit_n<n>.md`` and
-``docs/img/bending_explicit_n<n>_*.png``.
+Writes everything into ``out/`` beside this script (not kept in git): the runs ``out/<variant>/``
+(a rerun with ``--reuse`` reads them instead of running again), the table ``out/results.md`` and
+the figures ``out/bending_*.png``; with ``--explicit``, into ``out_explicit_n<n>/`` instead: the
+runs, ``results_explicit_n<n>.md`` and ``bending_explicit_n<n>_*.png``. Only with ``--publish``
+are the tracked copies written too: the table beside this script (``results.md`` or
+``results_explicit_n<n>.md``) and the figures under ``docs/img/`` (``bending_*.png`` or
+``bending_explicit_n<n>_*.png``).
 The two ``dt_max 1e-4`` variants repeat the rigid-knot runs without the error control (steps of
 at most 0.1 ms, halved only when Newton's method fails). Every variant has a wall-time limit
 (``--limit``); a run that reaches it is interrupted like Ctrl-C and keeps its frames.
@@ -20,9 +23,10 @@ With ``--explicit`` every variant runs with the explicit integrator instead (rod
 rotary inertia, FORMULATION.md §9b; the cables as the lumped model), and the ``dt_max`` variants,
 which are about implicit step control, are left out.
 
-Usage, from the repository root, with one BLAS thread (``OPENBLAS_NUM_THREADS=1``):
-``python validation/cases/deploy_bending/study.py [--n 1] [--tolerance 1e-4] [--explicit]
-[--duration 3] [--limit 900] [--only NAME] [--reuse]``.
+Usage, from the repository root, with one BLAS thread:
+``OPENBLAS_NUM_THREADS=1 .venv/bin/python validation/cases/deploy_bending/study.py [--n 1]
+[--tolerance 1e-4] [--explicit] [--duration 3] [--limit 900] [--only NAME] [--reuse]
+[--publish]``.
 """
 
 from __future__ import annotations
@@ -30,6 +34,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import shutil
 import signal
 import time
 from pathlib import Path
@@ -41,7 +46,7 @@ from rodnet.run import RunResult, run
 from rodnet.scene import scene_from_toml
 
 HERE = Path(__file__).parent
-IMG = HERE.parents[2] / "docs" / "img"
+IMG = HERE.parents[2] / "docs" / "img"     # the published figures (``--publish`` only)
 BRAIDED = 0.01
 E, G, D = 7.0e10, 7.0e10 / (2 * 1.36), 1.0e-3     # the reference Kevlar thread
 SOLID_EI, SOLID_GJ = E * math.pi * D**4 / 64, G * math.pi * D**4 / 32
@@ -71,7 +76,8 @@ def variants() -> dict[str, tuple[str, ...]]:
 
 
 OUT = HERE / "out"
-"""Where the runs go: ``out/`` (implicit) or ``out_explicit_n<n>/`` (``--explicit``)."""
+"""Where the runs, the table and the figures go: ``out/`` (implicit) or ``out_explicit_n<n>/``
+(``--explicit``)."""
 PREFIX = "bending_"
 """File-name prefix of the figures: ``bending_`` or ``bending_explicit_n<n>_``."""
 
@@ -122,7 +128,8 @@ def load_variant(name: str) -> tuple[RunResult, float] | None:
     return RunResult(summary["status"], summary["message"], folder, summary, arrays), wall
 
 
-def figures(results: dict[str, RunResult]) -> None:
+def figures(results: dict[str, RunResult]) -> list[Path]:
+    """Draw the figures into :data:`OUT`; returns the files written."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -158,19 +165,21 @@ def figures(results: dict[str, RunResult]) -> None:
                  "threads without bending, with 1 % of the solid EI (braided) and with the solid EI",
                  fontsize=10)
     fig.tight_layout()
-    fig.savefig(IMG / f"{PREFIX}histories.png", dpi=110)
+    fig.savefig(OUT / f"{PREFIX}histories.png", dpi=110)
     plt.close(fig)
-    _shapes(results, plt)
+    shapes = _shapes(results, plt)
     _tensions(results, plt)
+    return [OUT / f"{PREFIX}histories.png", *shapes, OUT / f"{PREFIX}tension.png"]
 
 
-def _shapes(results: dict[str, RunResult], plt) -> None:
-    """The net at ``INSTANTS``, one row per variant that got that far (3-D line plots)."""
+def _shapes(results: dict[str, RunResult], plt) -> list[Path]:
+    """The net at ``INSTANTS``, one row per variant that got that far (3-D line plots); returns
+    the file written (none when no variant reached the first instant)."""
     from mpl_toolkits.mplot3d.art3d import Line3DCollection
 
     shown = [n for n, r in results.items() if r.arrays["time"][-1] >= INSTANTS[0] - 1e-9]
     if not shown:
-        return
+        return []
     fig = plt.figure(figsize=(11, 3.6 * len(shown)))
     for i, name in enumerate(shown):
         r = results[name]
@@ -199,8 +208,9 @@ def _shapes(results: dict[str, RunResult], plt) -> None:
                          f"area {r.arrays['mouth_area'][k]:.0f} m$^2$", fontsize=8)
     fig.suptitle("Net shape (knots, threads, corner masses); shooting direction z", fontsize=10)
     fig.tight_layout()
-    fig.savefig(IMG / f"{PREFIX}shapes.png", dpi=100)
+    fig.savefig(OUT / f"{PREFIX}shapes.png", dpi=100)
     plt.close(fig)
+    return [OUT / f"{PREFIX}shapes.png"]
 
 
 def _tensions(results: dict[str, RunResult], plt) -> None:
@@ -221,7 +231,7 @@ def _tensions(results: dict[str, RunResult], plt) -> None:
         a.grid(alpha=0.3)
     fig.suptitle("Tension histories at the saved frames (every 10 ms)", fontsize=10)
     fig.tight_layout()
-    fig.savefig(IMG / f"{PREFIX}tension.png", dpi=110)
+    fig.savefig(OUT / f"{PREFIX}tension.png", dpi=110)
     plt.close(fig)
 
 
@@ -294,8 +304,12 @@ def main() -> None:
     parser.add_argument("--duration", type=float, default=3.0)
     parser.add_argument("--only", default=None, help="only the variants whose name contains this")
     parser.add_argument("--limit", type=float, default=900.0, help="wall seconds per variant")
-    parser.add_argument("--reuse", action="store_true", help="read variants already in out/")
+    parser.add_argument("--reuse", action="store_true", help="read variants already in out/ "
+                        "(out_explicit_n<n>/ with --explicit)")
     parser.add_argument("--explicit", action="store_true", help="the explicit integrator")
+    parser.add_argument("--publish", action="store_true",
+                        help="also write the tracked table beside this script and the figures "
+                             "under docs/img/ (default: only out/ or out_explicit_n<n>/)")
     args = parser.parse_args()
     global OUT, PREFIX
     if args.explicit:
@@ -318,13 +332,25 @@ def main() -> None:
                 "bending: the lumped model), explicit_safety 0.5" if args.explicit else
                 f"generalized-alpha (rho_inf 0.7) with error_tolerance = {args.tolerance:g} m "
                 "(variants named dt_max: no error control)")
-    (HERE / ("results.md" if not args.explicit else f"results_explicit_n{args.n}.md")).write_text(
+    table_name = "results.md" if not args.explicit else f"results_explicit_n{args.n}.md"
+    OUT.mkdir(parents=True, exist_ok=True)
+    (OUT / table_name).write_text(
         f"# Bending study\n\nn = {args.n} element(s) per thread, {stepping}, "
         f"{args.duration:g} s simulated, one BLAS thread; wall time includes building the model; "
         "limit: the wall-time limit the run had (-: none; such runs marked \"time limit\" were "
         "interrupted by hand, see docs/bending.md).\n\n" + text)
     print(text)
-    figures(results)
+    written = [OUT / table_name, *figures(results)]
+    print(f"deploy_bending: results written to {OUT}/: " + ", ".join(p.name for p in written))
+    if args.publish:
+        published = {written[0]: HERE / table_name, **{p: IMG / p.name for p in written[1:]}}
+        for source, target in published.items():
+            target.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(source, target)
+        print("deploy_bending: published (tracked files rewritten): "
+              + ", ".join(str(p) for p in published.values()))
+    else:
+        print("deploy_bending: tracked files left unchanged (rerun with --publish to rewrite them)")
 
 
 if __name__ == "__main__":
