@@ -1,6 +1,16 @@
 """The net at its maximum mouth area (pyvista, off screen) and the deployment time series
 (matplotlib). Both read a finished output directory; :func:`render_in_subprocess` runs them in a
 child process so that a machine without working OpenGL loses the picture, never the run.
+
+For a run with rigid bodies the picture also draws the bodies at that frame and marks the
+thread nodes in contact, and the plot gains panels of the contact force, the targets' motion and
+the energies (:func:`deployment_panels`). The bodies' surfaces are rebuilt from what the output
+directory holds, with no need to find the scene file: a box, cylinder or sphere from its
+``shape`` and ``size`` in ``summary.json``'s scene (the same triangles the VTK series gets,
+:func:`rodnet.contact.surfaces.surface_triangles`), placed by ``body_positions`` and
+``body_rotations`` of ``result.npz``; a triangle mesh, whose file is named relative to a scene
+file the output does not record, from the frame's ``vtk/body_B_NNNNN.vtu`` when the run wrote
+VTK output (else it is left out and the picture says so).
 """
 
 from __future__ import annotations
@@ -9,9 +19,14 @@ import json
 import os
 import subprocess
 import sys
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
 
 
 def render_in_subprocess(directory: Path, picture: bool, plot: bool, timeout_s: float = 300.0) -> list[str]:
@@ -32,33 +47,198 @@ def render_in_subprocess(directory: Path, picture: bool, plot: bool, timeout_s: 
     return []
 
 
+# ---------------------------------------------------------------------------------------------
+# deployment.png
+
+
+@dataclass(frozen=True)
+class Curve:
+    """One line of a panel: ``values`` (F,) against the run's ``time``."""
+
+    label: str
+    values: FloatArray
+
+
+@dataclass(frozen=True)
+class Panel:
+    """One axes of ``deployment.png``: curves on the left axis and, optionally, on a right one."""
+
+    title: str
+    ylabel: str
+    curves: list[Curve]
+    right_ylabel: str = ""
+    right_curves: list[Curve] = field(default_factory=list)
+
+
+def deployment_panels(data: Any) -> list[Panel]:
+    """The panels of ``deployment.png`` for the arrays of ``result.npz`` (a mapping).
+
+    Without bodies: one panel, mouth area (left) and distance (right). With bodies, in this
+    order: that panel (for a net), the contact force (sum of the contact point force
+    magnitudes) [N], the bodies' speed [m/s] (left) and spin, the magnitude of the angular
+    velocity [deg/s] (right), and the energies [J] (kinetic, elastic, and contact when the
+    results hold a ``contact_energy``).
+    """
+    panels = []
+    if "mouth_area" in data:
+        panels.append(Panel("Net deployment", "mouth area [m$^2$]",
+                            [Curve("mouth area", data["mouth_area"])], "distance travelled [m]",
+                            [Curve("distance", data["distance"])]))
+    if "body_positions" not in data:
+        return panels
+    names = [str(n) for n in data["body_names"]]
+    panels.append(Panel("Contact force", "contact force [N]",
+                        [Curve("sum of contact point forces", data["contact_force"])]))
+    speed = np.linalg.norm(data["body_velocities"], axis=2)                  # (F, B)
+    spin = np.degrees(np.linalg.norm(data["body_angular_velocities"], axis=2))
+    panels.append(Panel("Target velocity and spin", "speed [m/s]",
+                        [Curve(f"{n} speed", speed[:, b]) for b, n in enumerate(names)],
+                        "spin [deg/s]",
+                        [Curve(f"{n} spin", spin[:, b]) for b, n in enumerate(names)]))
+    energies = [Curve(label, data[key]) for label, key in
+                (("kinetic", "kinetic_energy"), ("elastic", "elastic_energy"),
+                 ("contact", "contact_energy")) if key in data]
+    panels.append(Panel("Energy", "energy [J]", energies))
+    return panels
+
+
+def _draw_panel(ax: Any, time: FloatArray, panel: Panel, legend: bool) -> None:
+    """Draw ``panel`` on ``ax``; a right axis only when the panel has right curves."""
+    left_colours = ["tab:blue", "tab:green", "tab:purple", "tab:brown"]
+    right_colours = ["tab:orange", "tab:red", "tab:pink", "tab:olive"]
+    for k, curve in enumerate(panel.curves):
+        ax.plot(time, curve.values, color=left_colours[k % 4], label=curve.label)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel(panel.ylabel, color=left_colours[0] if panel.right_curves else "black")
+    ax.set_title(panel.title)
+    handles, labels = ax.get_legend_handles_labels()
+    if panel.right_curves:
+        twin = ax.twinx()
+        for k, curve in enumerate(panel.right_curves):
+            twin.plot(time, curve.values, color=right_colours[k % 4], label=curve.label)
+        twin.set_ylabel(panel.right_ylabel, color=right_colours[0])
+        more = twin.get_legend_handles_labels()
+        handles, labels = handles + more[0], labels + more[1]
+    if legend:
+        ax.legend(handles, labels, fontsize=8, loc="best")
+
+
 def plot_deployment(directory: Path) -> Path:
-    """Mouth area and distance against time, ``deployment.png``."""
+    """Draw :func:`deployment_panels` to ``deployment.png``: a single panel as one figure, more
+    as a grid of two columns."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    data = np.load(directory / "result.npz")
-    fig, ax = plt.subplots(figsize=(7, 4), constrained_layout=True)
-    ax.plot(data["time"], data["mouth_area"], color="tab:blue")
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("mouth area [m$^2$]", color="tab:blue")
-    twin = ax.twinx()
-    twin.plot(data["time"], data["distance"], color="tab:orange")
-    twin.set_ylabel("distance travelled [m]", color="tab:orange")
-    ax.set_title("Net deployment")
+    data = dict(np.load(directory / "result.npz"))
+    panels = deployment_panels(data)
+    if len(panels) <= 1:
+        fig, axes = plt.subplots(figsize=(7, 4), constrained_layout=True, squeeze=False)
+    else:
+        rows = (len(panels) + 1) // 2
+        fig, axes = plt.subplots(rows, 2, figsize=(12, 4 * rows), constrained_layout=True,
+                                 squeeze=False)
+    flat = axes.ravel()
+    for ax, panel in zip(flat, panels):
+        _draw_panel(ax, data["time"], panel, legend=len(panels) > 1)
+    for ax in flat[len(panels):]:
+        ax.set_visible(False)
     path = directory / "deployment.png"
     fig.savefig(path, dpi=120)
     plt.close(fig)
     return path
 
 
-def picture_at_max_area(directory: Path) -> Path:
-    """The net at maximum mouth area, threads coloured by tension, ``net.png``."""
+# ---------------------------------------------------------------------------------------------
+# net.png
+
+
+@dataclass(frozen=True)
+class BodyAtFrame:
+    """A body's surface at one frame: world ``vertices`` (V, 3) [m], ``faces`` (T, 3), and the
+    signed distance of world points (P, 3) to it [m] (negative inside)."""
+
+    name: str
+    vertices: FloatArray
+    faces: NDArray[np.int64]
+    distance: Any
+
+
+def bodies_at_frame(directory: Path, data: Any, summary: dict[str, Any], frame: int,
+                    ) -> tuple[list[BodyAtFrame], list[str]]:
+    """The run's bodies at ``frame`` (see the module docstring for where the surfaces come
+    from) and the names of the bodies that could not be drawn."""
+    from rodnet.contact.shapes import shape_from_scene
+    from rodnet.contact.surfaces import surface_triangles
+    from rodnet.kernels.so3 import quat_to_matrix
+
+    specs = summary.get("scene", {}).get("bodies", [])
+    found, missing = [], []
+    for b, spec in enumerate(specs):
+        position = np.asarray(data["body_positions"][frame, b], float)
+        rotation = quat_to_matrix(np.asarray(data["body_rotations"][frame, b], float))
+        if spec["shape"] != "mesh":
+            shape = shape_from_scene(spec["shape"], tuple(spec["size"]))
+            local, faces = surface_triangles(shape)
+
+            def distance(points: FloatArray, shape: Any = shape, c: FloatArray = position,
+                         r: FloatArray = rotation) -> FloatArray:
+                return shape.query((np.asarray(points) - c) @ r).distance   # exact, body frame
+
+            found.append(BodyAtFrame(spec["name"], position + local @ rotation.T, faces, distance))
+            continue
+        vtu = directory / "vtk" / f"body_{b}_{frame:05d}.vtu"
+        if not vtu.is_file():
+            missing.append(spec["name"])
+            continue
+        import meshio
+
+        mesh = meshio.read(vtu)
+        found.append(BodyAtFrame(spec["name"], np.asarray(mesh.points, float),
+                                 mesh.cells_dict["triangle"], _mesh_distance(mesh)))
+    return found, missing
+
+
+def _mesh_distance(mesh: Any) -> Any:
+    """Signed distance [m] of points to a closed triangle mesh (VTK's implicit poly-data
+    distance, exact for the triangles)."""
     import pyvista as pv
 
-    data = np.load(directory / "result.npz")
+    faces = mesh.cells_dict["triangle"]
+    surface = pv.PolyData(np.asarray(mesh.points, float),
+                          np.column_stack([np.full(len(faces), 3), faces]).ravel())
+
+    def distance(points: FloatArray) -> FloatArray:
+        probe = pv.PolyData(np.asarray(points, float)).compute_implicit_distance(surface)
+        return np.asarray(probe["implicit_distance"], float)
+
+    return distance
+
+
+def contact_nodes(points: FloatArray, bodies: list[BodyAtFrame], summary: dict[str, Any],
+                  ) -> NDArray[np.bool_]:
+    """(N,) True for the nodes at ``points`` (N, 3) [m] that touch a body: closer to its
+    surface than the thread radius plus the contact law's smoothing gap, where the penalty
+    force starts (N1). The radius is half the largest material diameter (one radius per node
+    is not in the results); contact between nodes, on a segment, is not marked."""
+    scene = summary.get("scene", {})
+    radius = 0.5 * max((m["diameter"] for m in scene.get("materials", [])), default=0.0)
+    reach = radius + float(scene.get("contact", {}).get("smoothing", 0.0))
+    touching = np.zeros(len(points), dtype=bool)
+    for body in bodies:
+        touching |= body.distance(points) < reach
+    return touching
+
+
+def picture_at_max_area(directory: Path) -> Path:
+    """The net at maximum mouth area, threads coloured by tension, ``net.png``; with bodies,
+    their surfaces (grey) at that frame and the nodes in contact (magenta, :func:`contact_nodes`;
+    the corner masses are red).
+    An axes triad and labelled bounds in metres give the orientation and the scale."""
+    import pyvista as pv
+
+    data = dict(np.load(directory / "result.npz"))
     summary = json.loads((directory / "summary.json").read_text())
     frame = int(np.argmax(data["mouth_area"])) if "mouth_area" in data else len(data["time"]) - 1
     segments = data["segments"]
@@ -67,17 +247,52 @@ def picture_at_max_area(directory: Path) -> Path:
     mesh = pv.PolyData(points, lines=lines)
     mesh.cell_data["tension [N]"] = data["tension"][frame]
     plotter = pv.Plotter(off_screen=True, window_size=(1000, 800))
-    plotter.add_mesh(mesh, scalars="tension [N]", cmap="viridis", line_width=2)
+    plotter.add_mesh(mesh, scalars="tension [N]", cmap="viridis", line_width=2,
+                     scalar_bar_args=dict(title="tension [N]", vertical=True, position_x=0.88,
+                                          position_y=0.25, width=0.05, height=0.5,
+                                          title_font_size=16, label_font_size=14, n_labels=5,
+                                          fmt="%.3g"))
     corners = [summary["nodes"][f"net:corner:{k}"] for k in range(4)] if "net:corner:0" in summary["nodes"] else []
     if corners:
         plotter.add_mesh(pv.PolyData(points[corners]), color="red", point_size=12,
                          render_points_as_spheres=True)
-    plotter.add_text(f"t = {data['time'][frame]:.2f} s", font_size=12)
+    text = f"t = {data['time'][frame]:.2f} s"
+    if "body_positions" in data:
+        text += _draw_bodies(plotter, directory, data, summary, frame, points)
+    plotter.add_text(text, font_size=12)
+    extent = float(np.ptp(np.asarray(plotter.bounds).reshape(3, 2), axis=1).max())
+    decimals = int(np.clip(2 - np.floor(np.log10(extent)), 0, 6)) if extent > 0 else 3
+    plotter.show_bounds(xtitle="x [m]", ytitle="y [m]", ztitle="z [m]", grid=False,
+                        location="outer", ticks="outside", font_size=10, fmt=f"%.{decimals}f",
+                        n_xlabels=3, n_ylabels=3, n_zlabels=3)
+    plotter.add_axes(line_width=3, labels_off=False)
     plotter.view_isometric()
+    plotter.camera.zoom(0.85)  # leave the right margin to the colour bar
     path = directory / "net.png"
     plotter.screenshot(str(path))
     plotter.close()
     return path
+
+
+def _draw_bodies(plotter: Any, directory: Path, data: Any, summary: dict[str, Any], frame: int,
+                 points: FloatArray) -> str:
+    """Add the bodies and the contact nodes to ``plotter``; return the caption's lines."""
+    import pyvista as pv
+
+    bodies, missing = bodies_at_frame(directory, data, summary, frame)
+    for body in bodies:
+        faces = np.column_stack([np.full(len(body.faces), 3), body.faces]).ravel()
+        plotter.add_mesh(pv.PolyData(body.vertices, faces), color="lightgrey")
+    touching = contact_nodes(points, bodies, summary)
+    if touching.any():
+        plotter.add_mesh(pv.PolyData(points[touching]), color="magenta", point_size=10,
+                         render_points_as_spheres=True, label="node in contact")
+    text = (f"\ncontact: {int(data['contact_count'][frame])} points, "
+            f"{float(data['contact_force'][frame]):.3g} N; magenta: {int(touching.sum())} nodes "
+            "touching")
+    if missing:
+        text += f"\nnot drawn (mesh without VTK output): {', '.join(missing)}"
+    return text
 
 
 if __name__ == "__main__":

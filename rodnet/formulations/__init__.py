@@ -1,1 +1,0 @@
-"""Element formulations: one file per element type, knowing its DOF layout."""
