@@ -478,14 +478,41 @@ def render() -> str:
             unit, text = DESCRIPTIONS.get(f"{name}.{f.name}", ("", "(no description)"))
             default = default_text(f)
             default = default if default in ("required", "not set") else f"`{_cell(default)}`"
-            rows.append(f"| `{f.name}` | {_cell(type_name(hints[f.name]))} | {default} | "
+            kind = type_name(hints[f.name])
+            if f"{name}.{f.name}" in CHOICES:  # names registered by the models and integrators
+                kind = " or ".join(toml_value(c) for c in CHOICES[f"{name}.{f.name}"]) + \
+                    (" (optional)" if kind.endswith("(optional)") else "")
+            rows.append(f"| `{f.name}` | {_cell(kind)} | {default} | "
                         f"{_cell(unit)} | {_cell(text)} |")
         parts.append("\n".join(rows) + "\n")
         derived = _derived(cls)
         if derived:
             parts.append("Derived quantities (read-only, used by the models):\n")
             parts.append("\n".join(derived) + "\n")
+    parts.append(support_table())
     return "\n".join(parts)
+
+
+CHOICES = {"model.type": list(config.MODEL_TYPES), "simulation.integrator": config.INTEGRATORS}
+"""Keys whose allowed values are names the model registry and the run module enter."""
+
+
+def support_table() -> str:
+    """The model table of :mod:`rodnet.models.registry`: what each model runs."""
+    from rodnet.models.registry import MODELS
+
+    rows = ["## What each model runs\n",
+            "From the model table (`rodnet/models/registry.py`), which also refuses the rest "
+            "with a message naming the key. \"Cosserat rods\" are `model.type = \"cosserat\"` "
+            "with bending or torsion; \"cable threads\" with both off.\n",
+            "| model | integrators | static runs | fixed bodies with | free bodies with | "
+            "net knots |", "|---|---|---|---|---|---|"]
+    for entry in MODELS.values():
+        s = entry.supports
+        rows.append(f"| {entry.label} | {', '.join(s.integrators)} | "
+                    f"{'yes' if s.static else 'no'} | {', '.join(s.fixed_bodies)} | "
+                    f"{', '.join(s.free_bodies)} | {', '.join(s.knots)} |")
+    return "\n".join(rows) + "\n"
 
 
 def main() -> None:

@@ -5,8 +5,9 @@ from __future__ import annotations
 
 import argparse
 import sys
-from importlib import resources
 from pathlib import Path
+
+from rodnet.data import reference_scene_text
 
 EXIT_BAD_INPUT, EXIT_FAILED, EXIT_INTERRUPTED = 2, 1, 130
 
@@ -62,9 +63,7 @@ def _positive_int(text: str) -> int:
     return value
 
 
-def demo_scene_text() -> str:
-    """TOML text of the built-in reference deployment."""
-    return resources.files("rodnet.data").joinpath("deploy_reference.toml").read_text()
+demo_scene_text = reference_scene_text
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -86,7 +85,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"rodnet validate: {'PASSED' if status == 0 else 'FAILED'}: {verdict}")
         return status
     if args.command == "bench":
-        from rodnet.bench import bench
+        from rodnet.tools.bench import bench
 
         print(bench(args.output, args.quick, args.only, args.limit))
         return 0

@@ -16,6 +16,15 @@ from rodnet.errors import SceneError
 Vec3 = tuple[float, float, float]
 
 
+MODEL_TYPES: dict[str, str] = {"cosserat": "generalized-alpha", "lumped": "explicit",
+                               "kirchhoff": "explicit"}
+"""Every ``model.type`` and the integrator a scene of that type runs with when it names none.
+The model registry (:mod:`rodnet.models.registry`) enters every model it knows here."""
+
+INTEGRATORS: list[str] = ["generalized-alpha", "backward-euler", "midpoint", "explicit", "rk45"]
+"""Every ``simulation.integrator`` (the run module enters every integrator it has)."""
+
+
 def require(ok: bool, key: str, value: Any, allowed: str) -> None:
     """Raise :class:`SceneError` for ``key`` unless ``ok``."""
     if not ok:
@@ -60,7 +69,7 @@ class SimulationSpec:
     duration: float = 3.0
     dt: float = 1.0e-3
     adaptive: bool = True
-    integrator: Literal["generalized-alpha", "backward-euler", "midpoint", "explicit", "rk45"] | None = None
+    integrator: str | None = None
     rho_inf: float = 0.7
     gravity: Vec3 = (0.0, 0.0, 0.0)
     load_steps: int = 10
@@ -73,6 +82,8 @@ class SimulationSpec:
 
     def __post_init__(self) -> None:
         _positive(self, "duration", "dt", "rtol", "dt_max", "error_tolerance")
+        require(self.integrator is None or self.integrator in INTEGRATORS, "integrator",
+                self.integrator, f"must be one of {INTEGRATORS}")
         require(0.0 <= self.rho_inf <= 1.0, "rho_inf", self.rho_inf, "must be in [0, 1]")
         require(self.load_steps >= 1, "load_steps", self.load_steps, "must be an integer >= 1")
         require(0.0 < self.explicit_safety <= 1.0, "explicit_safety", self.explicit_safety,
@@ -90,7 +101,7 @@ the residual bending flexibility of the element (FORMULATION.md, C44)."""
 class ModelSpec:
     """``[model]``: which mechanical model represents the threads."""
 
-    type: Literal["cosserat", "lumped", "kirchhoff"] = "cosserat"
+    type: str = "cosserat"
     elements_per_thread: int = 4
     bending: bool = True
     torsion: bool = True
@@ -100,6 +111,7 @@ class ModelSpec:
     shear_correction: Literal["none", "residual-bending"] = "none"
 
     def __post_init__(self) -> None:
+        require(self.type in MODEL_TYPES, "type", self.type, f"must be one of {list(MODEL_TYPES)}")
         require(self.elements_per_thread >= 1, "elements_per_thread", self.elements_per_thread,
                 "must be an integer >= 1")
         require(self.shear_correction in SHEAR_CORRECTIONS, "shear_correction",
@@ -470,7 +482,7 @@ class Scene:
         """The integrator in use: the scene's, or the model's default."""
         if self.simulation.integrator is not None:
             return self.simulation.integrator
-        return "generalized-alpha" if self.model.type == "cosserat" else "explicit"
+        return MODEL_TYPES[self.model.type]
 
     def material(self, name: str) -> MaterialSpec:
         """The material called ``name``."""

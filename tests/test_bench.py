@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rodnet.bench import (BenchRun, Study, errors, history_orders, interpolated_peak, peak_orders, perturbed,
+from rodnet.tools.bench import (BenchRun, Study, errors, history_orders, interpolated_peak, peak_orders, perturbed,
                           sensitivity, setting_orders, spatial_orders, write_outputs)
 
 

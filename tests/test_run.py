@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 
 from rodnet.cli import main
-from rodnet.reference.lumped import LumpedModel
-from rodnet.run import Recorder, prepare, run
+from rodnet.models.lumped import LumpedModel
+from rodnet.io.recorder import Recorder
+from rodnet.run import prepare, run
 from rodnet.scene import scene_from_toml
 from tests.conftest import small_net_toml
 
@@ -69,10 +70,10 @@ def test_divergence_stops_with_message_and_keeps_frames(tmp_path: Path, monkeypa
 def test_interrupt_keeps_frames(tmp_path: Path, monkeypatch) -> None:
     original = Recorder.__call__
 
-    def interrupt_after_five(self, t, x, v):
+    def interrupt_after_five(self, t, state):
         if len(self.time) == 5:
             raise KeyboardInterrupt
-        original(self, t, x, v)
+        original(self, t, state)
 
     monkeypatch.setattr(Recorder, "__call__", interrupt_after_five)
     r = run(scene_from_toml(small_net_toml(duration=0.5)), tmp_path, progress=False)

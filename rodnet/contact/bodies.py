@@ -2,30 +2,33 @@
 
 :func:`build_body_contact` turns ``[[bodies]]`` and ``[contact]`` into a read-only
 :class:`BodyContact`: one shape per body (:mod:`rodnet.contact.geometry`, :mod:`rodnet.contact.mesh`),
-its pose, the penalty law, the radius of every thread segment and the per-step travel limit that
-keeps thread points from jumping over a body. It refuses a body that overlaps a thread at the
-start, naming the body and the first node inside it. A fixed body keeps its pose; a free body has
-mass and inertia (from the shape, (G11)-(G12), or given) and its state in
-:attr:`BodyContact.motion`, which the explicit loop advances (:mod:`rodnet.contact.rigid_body`).
-The arrays the compiled explicit loop takes are built once by :meth:`BodyContact.kernel_arguments`. Equations:
-``elements/contact/FORMULATION.md``; user documentation: ``docs/contact.md``.
+its start pose, the penalty law, the radius of every thread segment and the per-step travel limit
+that keeps thread points from jumping over a body. It refuses a body that overlaps a thread at
+the start, naming the body and the first node inside it. A fixed body keeps its pose; a free body
+has mass and inertia (from the shape, (G11)-(G12), or given). The bodies' current state is not
+here but in the run's :class:`rodnet.state.State` (:meth:`BodyContact.start_motion` is its start).
+Equations: ``elements/contact/FORMULATION.md``; user documentation: ``docs/contact.md``.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
 from rodnet.config import BodySpec, ContactSpec, Scene
-from rodnet.contact.geometry import Box, Cylinder, Shape, Sphere, shape_from_scene
+from rodnet.contact.broadphase import contact_points
+from rodnet.contact.geometry import Box, Cylinder, Shape, Sphere
+from rodnet.contact.shapes import shape_from_scene
 from rodnet.contact.laws import ContactLaw
-from rodnet.contact.rigid_body import BodyMotion, start_motion
+from rodnet.contact.rigid_body import start_motion
 from rodnet.errors import SceneError
 from rodnet.kernels import so3
+from rodnet.state import BodyMotion
 from rodnet.topology import Structure
 
 FloatArray = NDArray[np.float64]
@@ -61,7 +64,7 @@ def euler_xyz_matrix(angles_deg: tuple[float, float, float]) -> tuple[FloatArray
 class BodyContact:
     """Rigid bodies and the penalty contact of the threads with them.
 
-    Every array is read-only except those of ``motion``, the bodies' current state.
+    Every array is read-only.
 
     Attributes
     ----------
@@ -118,11 +121,6 @@ class BodyContact:
     velocity: FloatArray
     omega: FloatArray
     gravity: FloatArray
-    motion: BodyMotion = field(init=False, repr=False)
-    _kernel: tuple = field(default=(), repr=False)
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "motion", self.start_motion())
 
     def start_motion(self) -> BodyMotion:
         """A new state of every body at t = 0."""
@@ -154,22 +152,16 @@ class BodyContact:
     def n_bodies(self) -> int:
         return len(self.names)
 
-    def kernel_arguments(self, inv_mass: FloatArray) -> tuple:
-        """The arrays of :func:`rodnet.kernels.contact_compiled.accumulate_contact` after the
-        state, the force and the step, in its order (built once, then reused)."""
-        if not self._kernel:
-            from rodnet.contact.kernel_data import kernel_arrays
+    @cached_property
+    def bound_radius(self) -> FloatArray:
+        """(B,) radius of each body's bounding sphere about its centre of mass [m]."""
+        return np.array([np.linalg.norm(np.abs(s.bounds).max(axis=0)) for s in self.shapes])
 
-            object.__setattr__(self, "_kernel", kernel_arrays(self))
-        node_share = _node_share(self.segments, len(inv_mass), self.points_per_segment)
-        return (inv_mass, self.segments, self.radius, node_share, *self._kernel)
-
-    def kernel_motion(self, motion: BodyMotion | None = None) -> tuple[FloatArray, ...]:
-        """Pose and velocities of :func:`~rodnet.kernels.contact_compiled.accumulate_contact`
-        after the law's scalars: position, rotation, velocity, omega (of ``motion``, default the
-        current state)."""
-        m = self.motion if motion is None else motion
-        return m.position, m.rotation, m.velocity, m.omega
+    def node_share(self, n_nodes: int) -> NDArray[np.int64]:
+        """Number of contact points that can act on each node: the node itself plus the
+        interior points of its segments, (N,)."""
+        degree = np.bincount(self.segments.ravel(), minlength=n_nodes)
+        return (1 + degree * (self.points_per_segment - 1)).astype(np.int64)
 
     def combined_step(self, threads: float, inv_mass: FloatArray) -> float:
         """The explicit limit [s] of threads whose own limit is ``threads`` [s] with these contact
@@ -214,13 +206,6 @@ class BodyContact:
         omega = math.sqrt(omega2)
         zeta = c * omega / (2.0 * k)
         return 2.0 / omega * (math.sqrt(1.0 + zeta**2) - zeta)
-
-
-def _node_share(segments: IntArray, n_nodes: int, points_per_segment: int) -> IntArray:
-    """Number of contact points that can act on each node: the node itself plus the interior
-    points of its segments, (N,)."""
-    degree = np.bincount(segments.ravel(), minlength=n_nodes)
-    return (1 + degree * (points_per_segment - 1)).astype(np.int64)
 
 
 def _base_dir(scene: Scene) -> Path:
@@ -317,8 +302,6 @@ def check_start_clear(contact: BodyContact, structure: Structure) -> None:
         Naming the body, and the first node inside it (or the first node of the first segment
         that touches it).
     """
-    from rodnet.contact.broadphase import contact_points
-
     x = structure.positions
     names = {index: selector for selector, index in sorted(structure.selectors.items(),
                                                             key=lambda item: item[0])}
@@ -348,30 +331,3 @@ def check_start_clear(contact: BodyContact, structure: Structure) -> None:
                          f"{np.array2string(x[node], precision=4)} m is inside the body or "
                          "closer to its surface than the thread radius; move the body or the "
                          "threads apart")
-
-
-def check_contact_supported(scene: Scene) -> None:
-    """Refuse scenes with bodies that this version cannot run: ``rk45``, and free bodies in
-    static runs or with an implicit integrator.
-
-    Raises
-    ------
-    SceneError
-    """
-    if not scene.bodies:
-        return
-    if scene.simulation.type == "dynamic" and scene.integrator == "rk45":
-        raise SceneError("simulation.integrator", "rk45", "rk45 does not model contact; scenes "
-                         "with [[bodies]] need 'explicit' or an implicit integrator "
-                         "('generalized-alpha', 'backward-euler', 'midpoint')")
-    free = [i for i, b in enumerate(scene.bodies) if not b.fixed]
-    if not free:
-        return
-    which = f"bodies[{free[0]}] ('{scene.bodies[free[0]].name}') is free (fixed = false)"
-    if scene.simulation.type == "static":
-        raise SceneError("simulation.type", "static", f"{which}: a static run needs every body "
-                         "fixed; set fixed = true or run it with type = 'dynamic'")
-    if scene.integrator != "explicit":
-        raise SceneError("simulation.integrator", scene.integrator,
-                         f"{which}: free bodies move with the 'explicit' integrator only; "
-                         "use integrator = 'explicit' or set fixed = true on every body")

@@ -2,7 +2,7 @@
 
 The implicit integrators, static runs and the saved frames use these; the explicit loop runs the
 compiled equivalent (:mod:`rodnet.kernels.contact_compiled`, checked against this module). For
-every body, at its current pose and velocity (``contact.motion``): candidate points (B1)-(B2),
+every body, at its pose and velocity (a :class:`~rodnet.state.BodyMotion`): candidate points (B1)-(B2),
 geometry in the body frame, the point law (K1)-(K4) with velocity-regularised friction (F2) on
 the velocity relative to the body's material point (B6), and distribution to the segment nodes
 (B5). The tangents hold the body still (implicit integrators run fixed bodies only). The tangents come
@@ -24,7 +24,7 @@ from rodnet.contact.broadphase import (ContactPoints, body_point_velocity, body_
 from rodnet.contact.geometry import FloatArray, SurfaceQuery
 from rodnet.contact.laws import PointForces, contact_force, normal_energy
 from rodnet.contact.rigid_body import kinetic_energy
-from rodnet.integrate.frames import StepStats
+from rodnet.state import BodyMotion
 
 
 class BodyPoints(NamedTuple):
@@ -36,9 +36,10 @@ class BodyPoints(NamedTuple):
     """(C, 3) tangential velocity of each point relative to the body [m/s]."""
 
 
-def _world_query(contact: BodyContact, b: int, local: FloatArray) -> SurfaceQuery:
+def _world_query(contact: BodyContact, motion: BodyMotion, b: int,
+                 local: FloatArray) -> SurfaceQuery:
     """Query body ``b`` at body-frame points ``local`` (C, 3); results in world frame."""
-    R, p = contact.motion.rotation[b], contact.motion.position[b]
+    R, p = motion.rotation[b], motion.position[b]
     q = contact.shapes[b].query(local)
     gradient = np.einsum("ij,pjk,lk->pil", R, q.normal_gradient, R)
     return SurfaceQuery(q.distance, np.einsum("ij,pj->pi", R, q.normal),
@@ -50,7 +51,7 @@ _NO_POINTS = ContactPoints(np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 3)),
 """No candidate point (a body out of reach)."""
 
 
-def bodies_in_reach(contact: BodyContact, x: FloatArray) -> NDArray[np.bool_]:
+def bodies_in_reach(contact: BodyContact, motion: BodyMotion, x: FloatArray) -> NDArray[np.bool_]:
     """Which bodies a thread point may touch at positions ``x`` (N, 3), (B,) bool.
 
     A cheap bounding-sphere test, the clearance of (E4): body b is out of reach when every
@@ -60,23 +61,18 @@ def bodies_in_reach(contact: BodyContact, x: FloatArray) -> NDArray[np.bool_]:
     """
     from rodnet.kernels.contact_compiled import segment_clearance
 
-    bound_radius = contact.__dict__.get("_bound_radius")
-    if bound_radius is None:
-        bound_radius = np.array([np.linalg.norm(np.abs(s.bounds).max(axis=0))
-                                 for s in contact.shapes])
-        object.__setattr__(contact, "_bound_radius", bound_radius)
     gap = segment_clearance(np.ascontiguousarray(x, dtype=np.float64), contact.segments,
                             contact.radius, float(contact.law.smoothing),
-                            contact.motion.position, bound_radius)
+                            np.ascontiguousarray(motion.position), contact.bound_radius)
     return gap <= 0.0
 
 
-def body_points(contact: BodyContact, x: FloatArray, v: FloatArray) -> list[BodyPoints]:
+def body_points(contact: BodyContact, motion: BodyMotion, x: FloatArray,
+                v: FloatArray) -> list[BodyPoints]:
     """Contact points and point forces for every body at positions ``x`` and velocities ``v``
-    (N, 3), with the bodies at ``contact.motion``."""
+    (N, 3), with the bodies at ``motion``."""
     endpoints = x[contact.segments]
-    motion = contact.motion
-    near = bodies_in_reach(contact, x)
+    near = bodies_in_reach(contact, motion, x)
     out = []
     for b, shape in enumerate(contact.shapes):
         if near[b]:
@@ -85,34 +81,30 @@ def body_points(contact: BodyContact, x: FloatArray, v: FloatArray) -> list[Body
                                     contact.points_per_segment, contact.segments)
         else:
             points = _NO_POINTS
-        if not len(points.segment):  # far from the body: the same empty result every time
-            if "_no_points" not in contact.__dict__:
-                object.__setattr__(contact, "_no_points", _evaluate(contact, b, points, v))
-            out.append(contact.__dict__["_no_points"])
-            continue
-        out.append(_evaluate(contact, b, points, v))
+        out.append(_evaluate(contact, motion, b, points, v))
     return out
 
 
-def _evaluate(contact: BodyContact, b: int, points: ContactPoints, v: FloatArray) -> BodyPoints:
+def _evaluate(contact: BodyContact, motion: BodyMotion, b: int, points: ContactPoints,
+              v: FloatArray) -> BodyPoints:
     """Point forces on the contact points ``points`` of body ``b``."""
-    motion = contact.motion
     weights = shape_functions(points.parameter)
     ends = contact.segments[points.segment]
     velocity = weights[:, 0, None] * v[ends[:, 0]] + weights[:, 1, None] * v[ends[:, 1]]
     if contact.free[b]:
         velocity = velocity - body_point_velocity(points.position, motion.position[b],
                                                   motion.velocity[b], motion.omega[b])
-    query = _world_query(contact, b, points.local)
+    query = _world_query(contact, motion, b, points.local)
     forces = contact_force(query, velocity, contact.radius[points.segment], contact.law)
     normal_speed = np.einsum("pi,pi->p", query.normal, velocity)
     return BodyPoints(points, forces, velocity - normal_speed[:, None] * query.normal)
 
 
-def nodal_force(contact: BodyContact, x: FloatArray, v: FloatArray) -> FloatArray:
+def nodal_force(contact: BodyContact, motion: BodyMotion, x: FloatArray,
+                v: FloatArray) -> FloatArray:
     """Force of all bodies on every node [N], (N, 3)."""
     total = np.zeros_like(x)
-    for bp in body_points(contact, x, v):
+    for bp in body_points(contact, motion, x, v):
         total += distribute_force(bp.forces.force, bp.points, contact.segments, len(x))
     return total
 
@@ -128,12 +120,13 @@ class ContactTangents(NamedTuple):
     """(S, 6, 6) d(nodal force)/d(node velocities) [N s/m]."""
 
 
-def nodal_tangents(contact: BodyContact, x: FloatArray, v: FloatArray) -> ContactTangents:
+def nodal_tangents(contact: BodyContact, motion: BodyMotion, x: FloatArray,
+                   v: FloatArray) -> ContactTangents:
     """:func:`nodal_force` and its derivatives (K4), (B5), summed per segment."""
     n_seg = len(contact.segments)
     force = np.zeros_like(x)
     d_x, d_v = np.zeros((n_seg, 6, 6)), np.zeros((n_seg, 6, 6))
-    for bp in body_points(contact, x, v):
+    for bp in body_points(contact, motion, x, v):
         force += distribute_force(bp.forces.force, bp.points, contact.segments, len(x))
         active = bp.forces.normal_force > 0.0
         if not active.any():
@@ -159,25 +152,27 @@ class ContactState(NamedTuple):
     """Rate of work dissipated by friction [W], >= 0."""
 
 
-def contact_state(contact: BodyContact, x: FloatArray, v: FloatArray) -> ContactState:
+def contact_state(contact: BodyContact, motion: BodyMotion, x: FloatArray,
+                  v: FloatArray) -> ContactState:
     """Contact totals at positions ``x`` and velocities ``v`` (N, 3)."""
     total, count, power = 0.0, 0, 0.0
     body_force = np.zeros((contact.n_bodies, 3))
     body_moment = np.zeros((contact.n_bodies, 3))
-    if not bodies_in_reach(contact, x).any():  # the common case while the target is far
+    if not bodies_in_reach(contact, motion, x).any():  # the common case while the target is far
         return ContactState(total, count, body_force, body_moment, power)
-    for b, bp in enumerate(body_points(contact, x, v)):
+    for b, bp in enumerate(body_points(contact, motion, x, v)):
         f = bp.forces.force
         total += float(np.linalg.norm(f, axis=1).sum())
         count += int((bp.forces.normal_force > 0.0).sum())
         body_force[b], body_moment[b] = body_reaction(f, bp.points.position,
-                                                      contact.motion.position[b])
+                                                      motion.position[b])
         # n is normal to the slip velocity, so f . v_T = f_T . v_T
         power -= float(np.einsum("pi,pi->", f, bp.slip_velocity))
     return ContactState(total, count, body_force, body_moment, power)
 
 
-def step_travel(contact: BodyContact, x_old: FloatArray, x_new: FloatArray) -> float:
+def step_travel(contact: BodyContact, motion: BodyMotion, x_old: FloatArray,
+                x_new: FloatArray) -> float:
     """Largest travel over a step of the nodes of segments that pass near a body, as a multiple
     of the body's travel limit (above 1: the step is too long), (E3).
 
@@ -191,7 +186,7 @@ def step_travel(contact: BodyContact, x_old: FloatArray, x_new: FloatArray) -> f
     reach = contact.radius + contact.law.smoothing
     worst = 0.0
     for k, shape in enumerate(contact.shapes):
-        R, p = contact.motion.rotation[k], contact.motion.position[k]
+        R, p = motion.rotation[k], motion.position[k]
         corners = np.stack([x_old[a], x_old[b], x_new[a], x_new[b]], axis=1)
         local = np.einsum("sci,ij->scj", corners - p, R)
         lower, upper = local.min(axis=1) - reach[:, None], local.max(axis=1) + reach[:, None]
@@ -202,27 +197,23 @@ def step_travel(contact: BodyContact, x_old: FloatArray, x_new: FloatArray) -> f
 
 
 
-def add_body_energy(energy: dict[str, float], contact: BodyContact, x: FloatArray) -> dict[str, float]:
-    """Add to a model's ``energy`` terms [J] those of the bodies: the free bodies' kinetic
-    energy (at ``contact.motion``) to ``kinetic``, their gravity potential to ``potential`` when
-    the model reports one, and ``contact``, the energy stored in the penalty springs (N4) at
-    positions ``x`` (N, 3). Returns ``energy``."""
-    if contact.free.any():
-        energy["kinetic"] += kinetic_energy(contact.mass, contact.inertia, contact.motion,
-                                            contact.free)
-        if "potential" in energy:
-            energy["potential"] -= float(np.sum(contact.mass[contact.free] * (
-                contact.motion.position[contact.free] @ contact.gravity)))
-    energy["contact"] = penalty_energy(contact, x)
-    return energy
+def body_energy(contact: BodyContact, motion: BodyMotion, x: FloatArray) -> dict[str, float]:
+    """The energy terms [J] of the bodies: the free bodies' ``kinetic`` energy, their gravity
+    ``potential``, and ``contact``, the energy stored in the penalty springs (N4) at positions
+    ``x`` (N, 3)."""
+    free = contact.free
+    return {"kinetic": kinetic_energy(contact.mass, contact.inertia, motion, free) if free.any() else 0.0,
+            "potential": -float(np.sum(contact.mass[free] * (motion.position[free] @ contact.gravity)))
+            if free.any() else 0.0,
+            "contact": penalty_energy(contact, motion, x)}
 
 
-def penalty_energy(contact: BodyContact, x: FloatArray) -> float:
+def penalty_energy(contact: BodyContact, motion: BodyMotion, x: FloatArray) -> float:
     """Energy stored in the penalty springs of every body within reach (N4) [J]; x (N, 3)."""
     energy = 0.0
-    for b in np.flatnonzero(bodies_in_reach(contact, x)):
-        points = contact_points(x[contact.segments], contact.radius, contact.motion.position[b],
-                                contact.motion.rotation[b], contact.shapes[b].bounds,
+    for b in np.flatnonzero(bodies_in_reach(contact, motion, x)):
+        points = contact_points(x[contact.segments], contact.radius, motion.position[b],
+                                motion.rotation[b], contact.shapes[b].bounds,
                                 contact.law.smoothing, contact.points_per_segment,
                                 contact.segments)
         if len(points.segment):
@@ -231,14 +222,6 @@ def penalty_energy(contact: BodyContact, x: FloatArray) -> float:
     return energy
 
 
-def pressed_nodes(contact: BodyContact, x: FloatArray, v: FloatArray) -> bytes:
+def pressed_nodes(contact: BodyContact, motion: BodyMotion, x: FloatArray, v: FloatArray) -> bytes:
     """Which nodes a body pushes on, packed: the contact part of a model's active set."""
-    return np.packbits(np.any(nodal_force(contact, x, v) != 0.0, axis=1)).tobytes()
-
-
-def add_friction_work(contact: BodyContact, x: FloatArray, v: FloatArray, dt: float,
-                      stats: StepStats) -> None:
-    """Add the friction work of an accepted step of ``dt`` ending at ``x``, ``v`` (N, 3) to
-    ``stats.extra["friction_work"]`` [J] (friction power at the end of the step times dt)."""
-    power = contact_state(contact, x, v).friction_power
-    stats.extra["friction_work"] = stats.extra.get("friction_work", 0.0) + dt * power
+    return np.packbits(np.any(nodal_force(contact, motion, x, v) != 0.0, axis=1)).tobytes()

@@ -16,7 +16,6 @@ is ``density * shape.mass_properties(1.0).volume``.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 from typing import NamedTuple, Protocol
 
 import numpy as np
@@ -77,6 +76,11 @@ class Shape(Protocol):
 def _positive(key: str, value: float, unit: str) -> None:
     if not (np.isfinite(value) and value > 0.0):
         raise SceneError(key, value, f"must be a finite number > 0 [{unit}]")
+
+
+def positive_length(key: str, value: float) -> None:
+    """Raise :class:`SceneError` for ``key`` unless ``value`` is a finite length > 0 [m]."""
+    _positive(key, value, "m")
 
 
 def as_points(points: FloatArray) -> FloatArray:
@@ -263,38 +267,6 @@ class Sphere:
         m = check_mass(mass)
         return MassProperties(m, 4.0 / 3.0 * np.pi * self.radius**3, np.zeros(3),
                               0.4 * m * self.radius**2 * _EYE)
-
-
-def shape_from_scene(shape: str, size: tuple[float, float, float] | None = None,
-                     file: str | Path | None = None, base_dir: str | Path = ".",
-                     ) -> Shape:
-    """The shape of a ``[[bodies]]`` entry (SCENE_FORMAT.md): keys ``shape``, ``size``, ``file``.
-
-    ``size`` is the edge lengths of a box, ``[d, d, length]`` of a cylinder (axis along body z)
-    and ``[d, d, d]`` of a sphere; a mesh is read from ``file`` relative to ``base_dir`` and
-    centred on its centre of volume.
-    """
-    if shape == "mesh":
-        if file is None:
-            raise SceneError("file", None, "is required for shape = \"mesh\"")
-        from rodnet.contact.mesh import load_mesh
-
-        return load_mesh(Path(base_dir) / file)[0]
-    if shape not in ("box", "cylinder", "sphere"):
-        raise SceneError("shape", shape, "must be \"box\", \"cylinder\", \"sphere\" or \"mesh\"")
-    if size is None or len(size) != 3:
-        raise SceneError("size", size, "must be three lengths [m]")
-    for v in size:
-        _positive("size", v, "m")
-    if shape == "box":
-        return Box(tuple(0.5 * float(v) for v in size))
-    if shape == "cylinder":
-        if size[0] != size[1]:
-            raise SceneError("size", size, "a cylinder is [diameter, diameter, length]")
-        return Cylinder(0.5 * size[0], float(size[2]), axis=2)
-    if not size[0] == size[1] == size[2]:
-        raise SceneError("size", size, "a sphere is [diameter, diameter, diameter]")
-    return Sphere(0.5 * size[0])
 
 
 def query_world(shape: Shape, points: FloatArray, position: FloatArray, rotation: FloatArray,

@@ -1,21 +1,19 @@
 """Flat arrays of a :class:`~rodnet.contact.bodies.BodyContact` for the compiled contact kernels.
 
-The compiled loop (:mod:`rodnet.kernels.contact_compiled`) takes plain arrays: one row per body
+The compiled kernels (:mod:`rodnet.kernels.contact_compiled`) take plain arrays: one row per body
 for the primitives and every mesh's bounding-volume hierarchy and pseudonormals concatenated, with
 each mesh body pointing at the root of its own tree. Built once per model; the bodies' poses and
-velocities are not among them (they change during a run: :attr:`BodyContact.motion`).
+velocities are not among them (they change during a run: the state's bodies).
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
+from numpy.typing import NDArray
 
+from rodnet.contact.bodies import BodyContact
 from rodnet.contact.geometry import Box, Cylinder, Sphere
-
-if TYPE_CHECKING:
-    from rodnet.contact.bodies import BodyContact
+from rodnet.kernels.contact_compiled import ContactData
 
 
 def _primitive_row(shape: object) -> tuple[int, list[float]]:
@@ -27,7 +25,7 @@ def _primitive_row(shape: object) -> tuple[int, list[float]]:
         return 1, [shape.radius, shape.length, float(shape.axis)]
     if isinstance(shape, Sphere):
         return 2, [shape.radius, 0.0, 0.0]
-    return 3, [shape._on_surface, 0.0, 0.0]  # type: ignore[attr-defined]
+    return 3, [shape.on_surface, 0.0, 0.0]  # type: ignore[attr-defined]
 
 
 def _mesh_arrays(meshes: list) -> tuple[list[int], tuple[np.ndarray, ...]]:
@@ -37,8 +35,8 @@ def _mesh_arrays(meshes: list) -> tuple[list[int], tuple[np.ndarray, ...]]:
         "face_normal", "edge_normal", "corner_normal")}
     roots, n_nodes, n_tri = [], 0, 0
     for mesh in meshes:
-        h = mesh._hierarchy
-        face_normal, edge_normal, vertex_normal = mesh._normals
+        h = mesh.hierarchy
+        face_normal, edge_normal, vertex_normal = mesh.normals
         roots.append(n_nodes)
         parts["tri"].append(h.triangles)
         parts["lower"].append(h.lower)
@@ -66,9 +64,9 @@ def _mesh_arrays(meshes: list) -> tuple[list[int], tuple[np.ndarray, ...]]:
     return roots, tuple(arrays)
 
 
-def kernel_arrays(contact: BodyContact) -> tuple:
-    """Arrays and scalars of :func:`~rodnet.kernels.contact_compiled.accumulate_contact` from its
-    ``kind`` argument on."""
+def kernel_data(contact: BodyContact, inv_mass: NDArray[np.float64]) -> ContactData:
+    """The :class:`~rodnet.kernels.contact_compiled.ContactData` of ``contact`` for nodes of
+    inverse masses ``inv_mass`` (N,) [1/kg] (for the friction cap, (E2))."""
     codes, sizes = zip(*(_primitive_row(s) for s in contact.shapes))
     meshes = [s for s, code in zip(contact.shapes, codes) if code == 3]
     roots, mesh = _mesh_arrays(meshes)
@@ -77,8 +75,11 @@ def kernel_arrays(contact: BodyContact) -> tuple:
     bounds = np.array([s.bounds for s in contact.shapes], dtype=np.float64)
     bound_radius = np.linalg.norm(np.abs(bounds).max(axis=1), axis=1)
     law = contact.law
-    return (np.array(codes, np.int64), np.array(sizes, np.float64), bounds, bound_radius,
-            np.ascontiguousarray(contact.travel_limit, dtype=np.float64),
-            np.ascontiguousarray(contact.compliance(), dtype=np.float64), mesh_root, *mesh,
-            float(law.stiffness), float(law.damping), float(law.friction), float(law.smoothing),
-            float(law.slip_velocity), int(contact.points_per_segment))
+    f = np.ascontiguousarray
+    return ContactData(
+        f(inv_mass, dtype=np.float64), f(contact.segments, dtype=np.int64),
+        f(contact.radius, dtype=np.float64), contact.node_share(len(inv_mass)),
+        np.array(codes, np.int64), np.array(sizes, np.float64), bounds, bound_radius,
+        f(contact.travel_limit, dtype=np.float64), f(contact.compliance(), dtype=np.float64),
+        mesh_root, *mesh, float(law.stiffness), float(law.damping), float(law.friction),
+        float(law.smoothing), float(law.slip_velocity), int(contact.points_per_segment))

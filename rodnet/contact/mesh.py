@@ -46,9 +46,12 @@ class TriangleMesh:
     vertices: FloatArray
     faces: IntArray
     name: str = "<mesh>"
-    _hierarchy: Hierarchy = field(init=False, repr=False)
-    _normals: tuple[FloatArray, FloatArray, FloatArray] = field(init=False, repr=False)
-    _on_surface: float = field(init=False, repr=False)
+    hierarchy: Hierarchy = field(init=False, repr=False)
+    """Bounding boxes of the triangles (:mod:`rodnet.contact.mesh_distance`)."""
+    normals: tuple[FloatArray, FloatArray, FloatArray] = field(init=False, repr=False)
+    """Face normals, edge and vertex pseudonormals, (G10)."""
+    on_surface: float = field(init=False, repr=False)
+    """Closer than this [m] a point is on the surface and takes the pseudonormal as normal."""
 
     def __post_init__(self) -> None:
         vertices = np.array(self.vertices, dtype=np.float64).reshape(-1, 3)
@@ -68,10 +71,10 @@ class TriangleMesh:
         vertices.flags.writeable = faces.flags.writeable = False
         object.__setattr__(self, "vertices", vertices)
         object.__setattr__(self, "faces", faces)
-        object.__setattr__(self, "_hierarchy", Hierarchy(vertices[faces]))
-        object.__setattr__(self, "_normals", pseudonormals(vertices, faces))
+        object.__setattr__(self, "hierarchy", Hierarchy(vertices[faces]))
+        object.__setattr__(self, "normals", pseudonormals(vertices, faces))
         # closer than this a point is on the surface and takes the pseudonormal as its normal
-        object.__setattr__(self, "_on_surface", 1e-12 * size)
+        object.__setattr__(self, "on_surface", 1e-12 * size)
 
     @property
     def bounds(self) -> FloatArray:
@@ -85,7 +88,7 @@ class TriangleMesh:
         inside or outside. Use it only where deeper penetration cannot occur.
         """
         x = as_points(points)
-        d2, face, bary = self._hierarchy.closest(x, max_distance)
+        d2, face, bary = self.hierarchy.closest(x, max_distance)
         distance, normal = np.full(x.shape[0], np.inf), np.zeros_like(x)
         closest, gradient = x.copy(), np.zeros((x.shape[0], 3, 3))
         hit = face >= 0
@@ -96,7 +99,7 @@ class TriangleMesh:
 
     def _resolve(self, x: FloatArray, unsigned: FloatArray, face: IntArray, bary: FloatArray,
                  ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-        face_normal, edge_normal, vertex_normal = self._normals
+        face_normal, edge_normal, vertex_normal = self.normals
         corners = self.vertices[self.faces[face]]
         closest = np.einsum("pk,pki->pi", bary, corners)
         zero = bary == 0.0
@@ -111,7 +114,7 @@ class TriangleMesh:
         diff = x - closest
         sign = np.where(np.einsum("pi,pi->p", diff, pseudo) < 0.0, -1.0, 1.0)
         distance = sign * unsigned
-        resolved = unsigned > self._on_surface
+        resolved = unsigned > self.on_surface
         safe = np.where(resolved, unsigned, 1.0)
         normal = np.where(resolved[:, None], sign[:, None] * diff / safe[:, None], pseudo)
         # (G3): dn/dx = (I - n n - T) / d, T the tangent projector of the closest feature

@@ -1,8 +1,10 @@
-"""Explicit symplectic Euler for the lumped model, compiled, stepping exactly onto frame times.
+"""The explicit driver: the compiled step loop of :mod:`rodnet.kernels.explicit`, one call per
+saved frame, for any system.
 
-Scheme: ``elements/spring/FORMULATION.md`` (S9); stable step (S10). A model with rigid bodies
-runs the compiled loop with contact of :mod:`rodnet.integrate.explicit_contact` instead; a model
-without them never touches contact code.
+Between two frames the step is the system's ``dt`` shrunk so that a whole number of steps fits
+(the step control may shorten it further: rotation-controlled steps of rods (C50), and near
+rigid bodies (E3), (E5)). The loop runs on numba's threads when more than one is set
+(:func:`rodnet.kernels.threads.use_threads`).
 """
 
 from __future__ import annotations
@@ -13,14 +15,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rodnet.errors import SimulationFailed
-from rodnet.integrate.frames import FrameSink, ProgressSink, StepStats
-from rodnet.kernels.lumped_explicit import advance
-from rodnet.reference.lumped import LumpedModel
-
-
-def explicit_step(model: LumpedModel, dt: float, adaptive: bool, safety: float) -> float:
-    """The step to use: ``safety`` times the stability limit when adaptive, else ``dt`` itself."""
-    return safety * model.stable_step() if adaptive else dt
+from rodnet.integrate.frames import ProgressSink, StepStats
+from rodnet.integrate.system import FrameSink, System
+from rodnet.kernels.contact_compiled import contact_scratch
+from rodnet.kernels import threads
+from rodnet.kernels.explicit import (Bodies, ExplicitProblem, Marched, Scratch, StepControl, march,
+                                     march_parallel)
+from rodnet.state import State
 
 
 def whole_steps(t_start: float, t_end: float, step: float) -> tuple[int, float]:
@@ -37,59 +38,83 @@ def whole_steps(t_start: float, t_end: float, step: float) -> tuple[int, float]:
     return n_steps, (t_end - t_start) / n_steps
 
 
-def diverged(t: float, h: float, limit: float, scene: str = "this scene") -> SimulationFailed:
-    """The error of an explicit run whose state became non-finite.
-
-    Parameters
-    ----------
-    t : float
-        Time [s] at which it was found.
-    h : float
-        Step [s] in use.
-    limit : float
-        Stability limit [s] of the scene.
-    scene : str
-        What ``limit`` is the limit of, as the message names it.
-    """
-    return SimulationFailed(
-        f"the explicit solution diverged (non-finite state) at t = {t:.6g} s with dt = {h:.3g} s; "
-        f"the stability limit of {scene} is {limit:.3g} s")
+def scratch(problem: ExplicitProblem) -> Scratch:
+    """Work arrays of the loop for ``problem``."""
+    n, r = problem.nodes.inv_mass.shape[0], problem.rotations.inertia.shape[0]
+    e, b = problem.rods.rest_length.shape[0], problem.contact.kind.shape[0]
+    return Scratch(np.empty((n, 3)), np.empty((r, 3)), np.empty((e, 2, 3)), np.empty((e, 2, 4)),
+                   np.empty((e, 12)), np.empty((e, 12)), np.empty((e, 2)), np.empty((9, 3)),
+                   contact_scratch(n, b))
 
 
-def integrate_explicit(model: LumpedModel, x0: NDArray[np.float64], v0: NDArray[np.float64],
-                       times: NDArray[np.float64], dt: float, on_frame: FrameSink,
-                       on_progress: ProgressSink | None = None,
-                       stats: StepStats | None = None, near_dt: float | None = None) -> StepStats:
-    """Step from ``times[0]`` to ``times[-1]``, handing every frame time's state to ``on_frame``.
+def _bodies(state: State) -> Bodies:
+    m = state.bodies
+    if m is None:
+        z = np.zeros
+        return Bodies(z((0, 3)), z((0, 3)), z((0, 4)), z((0, 3, 3)), z((0, 3)), z((0, 3)))
+    return Bodies(m.position, m.velocity, m.quaternion, m.rotation, m.momentum, m.omega)
 
-    Between two frames the step is ``dt`` shrunk so that a whole number of steps fits. With rigid
-    bodies, ``near_dt`` [s] (default ``dt``) is the step while a body is within reach of a thread
-    (:func:`rodnet.integrate.explicit_contact.march_with_contact`).
+
+def _failure(done: Marched, h: float, control: StepControl, problem: ExplicitProblem) -> str:
+    """The message of a failed call of the loop."""
+    rods = problem.rods.rest_length.shape[0] > 0
+    rotation = (f" and the largest element rotation reached {done.phi_max:.3g} rad (limit 2 pi)"
+                if rods else "")
+    if done.status == 2:
+        cause = (f"; the largest element rotation reached {done.phi_max:.3g} rad, near the "
+                 "element's limit of 2 pi: the solution diverged there; use more "
+                 "elements_per_thread" if rods and done.phi_max > 0.9 * 2.0 * math.pi
+                 else "; check the scene's speeds")
+        return (f"at t = {done.t:.6g} s a thread point near a body moves so fast that a step "
+                f"within its travel limit would be below {control.min_dt:.3g} s{cause}")
+    scene = "this scene" if problem.contact.kind.shape[0] == 0 else "the threads alone"
+    advice = ("; reduce simulation.explicit_safety, or use more elements_per_thread if that "
+              "rotation is near 2 pi") if rods else ""
+    return (f"the explicit solution diverged (non-finite state) at t = {done.t:.6g} s with "
+            f"dt = {h:.3g} s; the stability limit of {scene} is {control.stable_step:.3g} s"
+            f"{rotation}{advice}")
+
+
+def integrate_explicit(system: System, state: State, times: NDArray[np.float64],
+                       on_frame: FrameSink, on_progress: ProgressSink | None = None,
+                       stats: StepStats | None = None) -> StepStats:
+    """Step ``state`` (in place) from ``times[0]`` to ``times[-1]``, handing every frame time's
+    state to ``on_frame``.
 
     Raises
     ------
     SimulationFailed
-        When a position becomes non-finite; every earlier frame has been handed on.
+        When the state becomes non-finite, or a point near a body moves so fast that its
+        travel-limited step falls below the step control's ``min_dt``; every earlier frame has
+        been handed on.
     """
-    x, v = np.array(x0, dtype=float), np.array(v0, dtype=float)
-    scratch = np.empty_like(x)
+    problem, control = system.explicit_problem()
+    if control is None:
+        raise ValueError("the system was not prepared for the explicit integrator")
+    work = scratch(problem)
+    bodies = _bodies(state)
+    x, quat, v, W = state.q.x, state.q.quat, state.velocities, state.spin
+    loop = march_parallel if threads.current() > 1 else march
+    rods = problem.rods.rest_length.shape[0] > 0
     stats = StepStats() if stats is None else stats  # filled in place: kept if the run fails
-    on_frame(float(times[0]), x, v)
-    if getattr(model, "contact", None) is not None:
-        from rodnet.integrate.explicit_contact import march_with_contact
-
-        return march_with_contact(model, x, v, times, dt, on_frame, on_progress, stats, near_dt)
-    k = model.kernel_arguments()
-    args = (*k[:6], model.inv_mass, *k[6:])
+    on_frame(float(times[0]), state)
     for t_start, t_end in zip(times[:-1], times[1:]):
-        n_steps, h = whole_steps(t_start, t_end, dt)
-        peak, done = advance(x, v, scratch, float(t_start), h, n_steps, *args)
-        stats.record_step(h, done)
-        stats.function_evaluations += done
-        if done < n_steps or not np.isfinite(v).all():  # its peak is the divergence's: not kept
-            raise diverged(t_start + done * h, h, model.stable_step())
-        stats.max_tension = max(stats.max_tension, peak)
-        on_frame(float(t_end), x, v)
+        n, h = whole_steps(t_start, t_end, control.dt)
+        done = loop(x, quat, v, W, bodies, float(t_start), float(t_end), n, h, problem, control,
+                    work)
+        stats.function_evaluations += done.evaluations
+        state.friction_work += done.friction_work
+        if rods:
+            stats.max_element_rotation = max(stats.max_element_rotation or 0.0, done.phi_max)
+        finite = np.isfinite(v).all() and np.isfinite(W).all()
+        if done.status == 0 and finite:  # a failed call's steps and peak are the divergence's
+            if done.steps:
+                stats.record_steps(done.steps, done.h_min, done.h_max)
+            stats.max_tension = max(stats.max_tension, done.peak)
+        else:
+            stats.steps += done.steps
+            raise SimulationFailed(_failure(done, h, control, problem))
+        on_frame(float(t_end), state)
         if on_progress is not None:
             on_progress(float(t_end), h, stats)
     return stats

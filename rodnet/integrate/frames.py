@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable, Protocol
+from typing import Callable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -26,16 +26,13 @@ class StepStats:
     extra: dict[str, float] = field(default_factory=dict)
 
     def record_step(self, dt: float, count: int = 1) -> None:
+        self.record_steps(count, dt, dt)
+
+    def record_steps(self, count: int, dt_min: float, dt_max: float) -> None:
+        """``count`` accepted steps, the shortest ``dt_min`` and the longest ``dt_max`` [s]."""
         self.steps += count
-        self.dt_min = min(self.dt_min, dt)
-        self.dt_max = max(self.dt_max, dt)
-
-
-class FrameSink(Protocol):
-    """Receives every saved frame: time [s], positions (N, 3) [m], velocities (N, 3) [m/s]."""
-
-    def __call__(self, time: float, positions: NDArray[np.float64],
-                 velocities: NDArray[np.float64]) -> None: ...
+        self.dt_min = min(self.dt_min, dt_min)
+        self.dt_max = max(self.dt_max, dt_max)
 
 
 ProgressSink = Callable[[float, float, StepStats], None]

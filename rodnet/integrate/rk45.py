@@ -1,7 +1,9 @@
-"""Adaptive Dormand-Prince RK45 (scipy) on the lumped model: the independent reference integrator.
+"""Adaptive Dormand-Prince RK45 (scipy): the independent reference integrator of models without
+rotations.
 
 It plays the part of the general-purpose ODE solver the seed paper validated against; frames are
-taken from its dense output, so they do not constrain its steps.
+taken from its dense output, so they do not constrain its steps. The right-hand side is the
+compiled force evaluation of the explicit loop (:func:`rodnet.kernels.explicit.forces`).
 """
 
 from __future__ import annotations
@@ -11,16 +13,16 @@ from numpy.typing import NDArray
 from scipy.integrate import RK45
 
 from rodnet.errors import SimulationFailed
-from rodnet.integrate.frames import FrameSink, ProgressSink, StepStats
-from rodnet.kernels.lumped_explicit import accumulate_forces
-from rodnet.reference.lumped import LumpedModel
+from rodnet.integrate.explicit import scratch
+from rodnet.integrate.frames import ProgressSink, StepStats
+from rodnet.integrate.system import FrameSink, System
+from rodnet.kernels.explicit import forces
+from rodnet.state import Configuration, State
 
 
-def integrate_rk45(model: LumpedModel, x0: NDArray[np.float64], v0: NDArray[np.float64],
-                   times: NDArray[np.float64], rtol: float, on_frame: FrameSink,
-                   on_progress: ProgressSink | None = None,
-                   first_step: float | None = None,
-                       stats: StepStats | None = None) -> StepStats:
+def integrate_rk45(system: System, state: State, times: NDArray[np.float64], rtol: float,
+                   on_frame: FrameSink, on_progress: ProgressSink | None = None,
+                   first_step: float | None = None, stats: StepStats | None = None) -> StepStats:
     """Integrate with RK45 (relative tolerance ``rtol``; absolute tolerance ``rtol`` times 1 mm
     and 1 mm/s) and hand the interpolated state at every frame time to ``on_frame``.
 
@@ -29,19 +31,23 @@ def integrate_rk45(model: LumpedModel, x0: NDArray[np.float64], v0: NDArray[np.f
     SimulationFailed
         When the solver fails or the state becomes non-finite; earlier frames are kept.
     """
-    n = len(x0)
+    problem, _ = system.explicit_problem()
+    if problem.rotations.inertia.shape[0]:
+        raise ValueError("RK45 integrates systems without rotations only")
+    n = len(state.q.x)
     stats = StepStats() if stats is None else stats  # filled in place: kept if the run fails
+    work, no_rotation = scratch(problem), np.zeros((0, 4))
+    spin, inv_mass = np.zeros((0, 3)), problem.nodes.inv_mass
 
     def rhs(t: float, y: NDArray[np.float64]) -> NDArray[np.float64]:
         x, v = y[:3 * n].reshape(n, 3), y[3 * n:].reshape(n, 3)
-        accumulate_forces(x, v, t, force, *args)
-        return np.concatenate([y[3 * n:], (force * inv_mass).ravel()])
+        forces(t, x, no_rotation, v, spin, problem, work)
+        return np.concatenate([y[3 * n:], (work.f_node * inv_mass).ravel()])
 
-    force, args, inv_mass = np.empty((n, 3)), model.kernel_arguments(), model.inv_mass[:, None]
-    y0 = np.concatenate([np.ravel(x0), np.ravel(v0)]).astype(float)
+    y0 = np.concatenate([np.ravel(state.q.x), np.ravel(state.v)]).astype(float)
     solver = RK45(rhs, float(times[0]), y0, float(times[-1]), rtol=rtol, atol=rtol * 1e-3,
                   first_step=first_step)
-    on_frame(float(times[0]), np.asarray(x0, float), np.asarray(v0, float))
+    on_frame(float(times[0]), state)
     next_frame = 1
     while next_frame < len(times):
         message = solver.step()
@@ -51,7 +57,9 @@ def integrate_rk45(model: LumpedModel, x0: NDArray[np.float64], v0: NDArray[np.f
         dense = solver.dense_output()
         while next_frame < len(times) and times[next_frame] <= solver.t + 1e-12:
             y = dense(times[next_frame]) if times[next_frame] < solver.t else solver.y
-            on_frame(float(times[next_frame]), y[:3 * n].reshape(n, 3), y[3 * n:].reshape(n, 3))
+            state.q = Configuration(y[:3 * n].reshape(n, 3).copy())
+            state.v = y[3 * n:].copy()
+            on_frame(float(times[next_frame]), state)
             next_frame += 1
         if on_progress is not None and stats.steps % 50 == 0:
             on_progress(float(solver.t), float(solver.step_size), stats)

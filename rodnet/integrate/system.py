@@ -1,25 +1,32 @@
-"""What an implicit integrator needs to know about a mechanical model, and nothing more.
+"""What an integrator needs to know about a mechanical system, and nothing more.
 
-The equations of motion are ``M dv/dt + g(q, v, t) = 0`` on the configuration space of the model:
-``q`` is opaque to the integrator (positions, unit quaternions ...), ``v`` is a vector of
-``n_dof`` generalised velocities (translational velocities and body-frame angular velocities),
-``M`` is constant and diagonal (lumped masses and body-frame rotary inertias), and the
-configuration moves by ``retract(q, dq)`` (the exponential map on rotations).
+The equations of motion are ``M dv/dt + g(q, v, t) = 0`` on the configuration space of the
+system: ``q`` is a :class:`rodnet.state.Configuration` (node positions and rotation-node
+quaternions), ``v`` a vector of ``n_dof`` generalized velocities (translational velocities, then
+body-frame angular velocities), ``M`` is constant and diagonal (lumped masses and body-frame
+rotary inertias), and the configuration moves by ``retract(q, dq)`` (the exponential map on
+rotations). Integrators see a system only through this protocol: they import no model, contact
+term or scene configuration, so every thread model and every integrator combine.
 """
 
 from __future__ import annotations
 
-from typing import Any, Protocol
+from typing import Protocol
 
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
+from rodnet.kernels.explicit import ExplicitProblem, StepControl
+from rodnet.state import Configuration, State
+
 FloatArray = NDArray[np.float64]
+IterationMatrix = object
+"""Newton's iteration matrix in the storage its LU takes (:mod:`rodnet.assembly`)."""
 
 
 class System(Protocol):
-    """A model as the integrators see it."""
+    """A model (with its contact terms) as the integrators see it."""
 
     n_dof: int
     dof_mass: FloatArray
@@ -28,28 +35,40 @@ class System(Protocol):
     """A characteristic internal force [N] (e.g. the largest axial stiffness EA): Newton's
     tolerance is relative to the larger of the step's forces and 1 % of this."""
     length_scale: float
-    """A characteristic size of the model [m] (Newton's position tolerance is relative to it)."""
+    """A characteristic size of the system [m] (Newton's position tolerance is relative to it)."""
     free: NDArray[np.bool_]
     """(n_dof,) DOFs that move; the others are supported and keep zero velocity."""
 
-    def generalized_force(self, q: Any, v: FloatArray, t: float, load_factor: float = 1.0) -> FloatArray:
-        """``g(q, v, t)`` (n_dof,): internal, gyroscopic and damping forces minus external ones."""
+    # --- implicit integrators and statics ------------------------------------------------
+
+    def generalized_force(self, q: Configuration, v: FloatArray, t: float,
+                          load_factor: float = 1.0) -> FloatArray:
+        """``g(q, v, t)`` (n_dof,): internal, gyroscopic, damping and contact forces minus
+        external ones (``load_factor`` scales gravity and loads, for static load stepping)."""
         ...
 
-    def tangents(self, q: Any, v: FloatArray, t: float, load_factor: float = 1.0,
+    def tangents(self, q: Configuration, v: FloatArray, t: float, load_factor: float = 1.0,
                  ) -> tuple[FloatArray, sp.csr_matrix, sp.csr_matrix]:
-        """``g`` (n_dof,) and, on the free DOFs, ``K = dg/dq`` and ``C = dg/dv`` (n_free, n_free)."""
+        """``g`` (n_dof,) and, on the free DOFs, ``K = dg/dq`` and ``C = dg/dv``
+        (n_free, n_free)."""
         ...
 
-    def retract(self, q: Any, dq: FloatArray) -> Any:
+    def iteration_matrix(self, q: Configuration, v: FloatArray, t: float, dq: FloatArray,
+                         diagonal: FloatArray, a: float, b: float, load_factor: float = 1.0,
+                         ) -> tuple[FloatArray, IterationMatrix]:
+        """``g`` and Newton's matrix ``diag(diagonal) + a C + b K T(dq)`` on the free DOFs."""
+        ...
+
+    def retract(self, q: Configuration, dq: FloatArray) -> Configuration:
         """The configuration ``q`` moved by the increment ``dq`` (n_dof,)."""
         ...
 
-    def tangent_operator(self, dq: FloatArray) -> sp.csr_matrix:
-        """``T(dq)`` on the free DOFs: ``retract(q, dq + e) ~ retract(retract(q, dq), T(dq) e)``."""
+    def times_tangent_operator(self, K: sp.csr_matrix, dq: FloatArray) -> sp.csr_matrix:
+        """``K T(dq)``, ``T`` the tangent operator on the free DOFs:
+        ``retract(q, dq + e) ~ retract(retract(q, dq), T(dq) e)``."""
         ...
 
-    def active_set(self, q: Any, v: FloatArray) -> int:
+    def active_set(self, q: Configuration, v: FloatArray) -> int:
         """A fingerprint of the non-smooth state (taut segments, contacts): when it changes,
         a reused factorisation is refreshed."""
         ...
@@ -57,3 +76,26 @@ class System(Protocol):
     def rotation_dofs(self) -> NDArray[np.int64]:
         """Indices of the rotational DOFs (their Newton increments are capped)."""
         ...
+
+    def step_travel(self, q_old: Configuration, q_new: Configuration) -> float:
+        """How far points near a rigid body moved over a step, as a multiple of their travel
+        limit (above 1 the step is retried shorter); 0 without bodies."""
+        ...
+
+    def step_work(self, q: Configuration, v: FloatArray, dt: float) -> float:
+        """Work friction dissipates over an accepted step of ``dt`` ending at ``q``, ``v`` [J];
+        0 without bodies."""
+        ...
+
+    # --- explicit integrator and RK45 --------------------------------------------------------
+
+    def explicit_problem(self) -> tuple[ExplicitProblem, StepControl | None]:
+        """The arrays of the compiled explicit loop (RK45 evaluates its forces), and the step
+        control of an explicit run (None when the system was not prepared for one)."""
+        ...
+
+
+class FrameSink(Protocol):
+    """Receives every saved frame: time [s] and the state."""
+
+    def __call__(self, time: float, state: State) -> None: ...

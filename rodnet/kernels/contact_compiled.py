@@ -1,37 +1,106 @@
-"""Compiled contact forces of thread points against rigid bodies, and the explicit step loop of
-the lumped model with contact and free bodies.
+"""Compiled contact forces of thread points against rigid bodies.
 
 One call of :func:`accumulate_contact` does, for every body, the broad phase (B1)-(B2) over all
 segments, the signed distance and normal of each candidate point ((G4)-(G10): box, cylinder,
 sphere, triangle mesh through its bounding-volume hierarchy), the penalty normal force (N1)-(N3),
 velocity-regularised friction (F1)-(F2) on the velocity relative to the body, and the distribution
-to the segment's nodes (B5) with the body's reaction force and moment (B6). Equations: ``elements/contact/FORMULATION.md``. The NumPy building blocks of
-:mod:`rodnet.contact` are the oracle: ``tests/contact/test_contact_model.py`` checks this kernel
-against them point by point.
+to the segment's nodes (B5) with the body's reaction force and moment (B6). Equations:
+``elements/contact/FORMULATION.md``. The NumPy building blocks of :mod:`rodnet.contact` are the
+oracle: ``tests/contact/test_contact_model.py`` checks this kernel against them point by point.
 
-Two things are specific to the explicit scheme, (E2)-(E3). Friction's viscous slope ``mu N / S`` is capped
-at ``m_eff / (dt share)`` (``m_eff`` the point's effective mass ``1 / (N_a^2/m_a + N_b^2/m_b)``,
-``share`` the number of points that can act on its nodes), the largest damping a symplectic Euler
-step resolves without overshoot; it only acts below a slip speed of order
-``mu N dt share / m_eff`` and leaves sliding friction ``mu N`` unchanged. And every segment whose
-nodes could reach a body within the step reports the step that keeps its travel within the body's
-travel limit, so the loop can shorten the step before a point jumps over a thin body. The loop
-(:func:`advance_contact`) visits a body only when a thread can have come within its reach since
-the last visit (E4), stops before visiting one at a step longer than the stable step with the
-contact springs (E5), and moves the free bodies with (R1)-(R4)
-(:func:`rodnet.contact.rigid_body.advance_bodies`).
+Two things are specific to the explicit scheme, (E2)-(E3). Friction's viscous slope ``mu N / S``
+is capped at ``m_eff / (dt share)`` (``m_eff`` the point's effective mass
+``1 / (N_a^2/m_a + N_b^2/m_b)``, ``share`` the number of points that can act on its nodes), the
+largest damping a symplectic Euler step resolves without overshoot; it only acts below a slip
+speed of order ``mu N dt share / m_eff`` and leaves sliding friction ``mu N`` unchanged. And every
+segment whose nodes could reach a body within the step reports the step that keeps its travel
+within the body's travel limit, so the explicit loop (:mod:`rodnet.kernels.explicit`) can shorten
+the step before a point jumps over a thin body; the loop visits a body only when a thread can
+have come within its reach since the last visit (E4, :func:`select_bodies`).
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numba
 import numpy as np
 
-from rodnet.contact.mesh_distance import STACK_DEPTH, nearest_triangle
-from rodnet.contact.rigid_body import advance_bodies
-from rodnet.kernels.lumped_explicit import accumulate_forces
+from rodnet.kernels.mesh_distance import STACK_DEPTH, nearest_triangle
+
+
+class ContactData(NamedTuple):
+    """The read-only arrays of the contact of thread segments with rigid bodies.
+
+    ``inv_mass`` (N,): 1 / mass of the nodes [1/kg] for the friction cap (E2); ``segments``
+    (S, 2) node pairs and ``radius`` (S,) [m]; ``node_share`` (N,): contact points that can act
+    on a node; per body (B): ``kind`` (0 box, 1 cylinder, 2 sphere, 3 mesh), ``body_size`` (B, 3),
+    ``body_bounds`` (B, 2, 3) [m], ``bound_radius``, ``travel_limit`` [m], ``body_compliance``
+    [1/kg] and ``mesh_root`` (-1 for primitives); the meshes' hierarchies and pseudonormals
+    concatenated (``tri`` ... ``corner_normal``); the law's ``stiffness`` [N/m], ``damping``
+    [N s/m], ``friction``, ``smoothing`` [m], ``slip_velocity`` [m/s]; ``points_per_segment``.
+    A scene without bodies has B = 0.
+    """
+
+    inv_mass: np.ndarray
+    segments: np.ndarray
+    radius: np.ndarray
+    node_share: np.ndarray
+    kind: np.ndarray
+    body_size: np.ndarray
+    body_bounds: np.ndarray
+    bound_radius: np.ndarray
+    travel_limit: np.ndarray
+    body_compliance: np.ndarray
+    mesh_root: np.ndarray
+    tri: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    left: np.ndarray
+    right: np.ndarray
+    start: np.ndarray
+    count: np.ndarray
+    order: np.ndarray
+    face_normal: np.ndarray
+    edge_normal: np.ndarray
+    corner_normal: np.ndarray
+    stiffness: float
+    damping: float
+    friction: float
+    smoothing: float
+    slip_velocity: float
+    points_per_segment: int
+
+
+class ContactScratch(NamedTuple):
+    """Work arrays of :func:`accumulate_contact` and the explicit loop's body selection:
+    ``active`` (B,) bool, ``taken`` (N,) bool (all False between calls), ``body_force`` and
+    ``body_moment`` (B, 3) [N, N m]; ``clearance`` (B,) [m] and ``travelled`` (B,) [m] carry over
+    from step to step (start with ``-inf`` and 0)."""
+
+    active: np.ndarray
+    taken: np.ndarray
+    body_force: np.ndarray
+    body_moment: np.ndarray
+    clearance: np.ndarray
+    travelled: np.ndarray
+
+
+def no_contact() -> ContactData:
+    """:class:`ContactData` without bodies (a scene without ``[[bodies]]``)."""
+    z, i = np.zeros, np.int64
+    return ContactData(z(0), z((0, 2), i), z(0), z(0, i), z(0, i), z((0, 3)), z((0, 2, 3)), z(0),
+                       z(0), z(0), z(0, i), z((0, 3, 3)), z((0, 3)), z((0, 3)), z(0, i), z(0, i),
+                       z(0, i), z(0, i), z(0, i), z((0, 3)), z((0, 3, 3)), z((0, 3, 3)), 0.0, 0.0,
+                       0.0, 0.0, 1.0, 1)
+
+
+def contact_scratch(n_nodes: int, n_bodies: int) -> ContactScratch:
+    """Fresh :class:`ContactScratch` for ``n_nodes`` nodes and ``n_bodies`` bodies."""
+    return ContactScratch(np.zeros(n_bodies, np.bool_), np.zeros(n_nodes, np.bool_),
+                          np.zeros((n_bodies, 3)), np.zeros((n_bodies, 3)),
+                          np.full(n_bodies, -np.inf), np.zeros(n_bodies))
 
 
 @numba.njit(cache=True)
@@ -241,19 +310,16 @@ def segment_clearance(x, segments, radius, smoothing, body_position, bound_radiu
 
 
 @numba.njit(cache=True)
-def accumulate_contact(x, v, force, dt, inv_mass, segments, radius, node_share,
-                       kind, body_size, body_bounds, bound_radius, travel_limit, body_compliance,
-                       mesh_root, tri, lower, upper, left, right, start, count,
-                       order, face_normal, edge_normal, corner_normal,
-                       stiffness, damping, friction, smoothing, slip_velocity, points_per_segment,
-                       body_position, body_rotation, body_velocity, body_omega,
-                       active, taken, body_force, body_moment, clearance):  # pragma: no cover
-    """Add the contact forces on the nodes to ``force`` (N, 3) [N].
+def accumulate_contact(x, v, force, dt, data, body_position, body_rotation, body_velocity,
+                       body_omega, scratch):  # pragma: no cover - compiled
+    """Add the contact forces on the nodes to ``force`` (N, 3) [N] at positions ``x`` and
+    velocities ``v`` (N, 3), the bodies at ``body_position`` (B, 3), ``body_rotation`` (B, 3, 3)
+    moving with ``body_velocity``, ``body_omega`` (B, 3, world axes); ``data`` is a
+    :class:`ContactData`, ``scratch`` a :class:`ContactScratch`.
 
     ``dt`` > 0 caps friction's viscous slope for a symplectic Euler step of that size and checks
     the travel of segments near bodies; ``dt`` <= 0 evaluates the plain law. Only bodies with
-    ``active`` (B,) True are visited. ``taken`` (N,) bool is scratch space, all False on entry
-    and on return. For every visited body, ``body_force`` and ``body_moment`` (B, 3) receive the
+    ``scratch.active`` True are visited. For every visited body, ``body_force`` and ``body_moment`` (B, 3) receive the
     force of the threads on it [N] and its moment about the centre of mass [N m], and
     ``clearance`` (B,) the smallest gap [m] between the bounding sphere of a segment, grown by
     its radius and the law's smoothing, and the body's bounding sphere (negative when some
@@ -271,6 +337,11 @@ def accumulate_contact(x, v, force, dt, inv_mass, segments, radius, node_share,
         The largest step [s] that keeps every segment near a body within its travel limit
         (inf when none is limiting, or ``dt`` <= 0).
     """
+    (inv_mass, segments, radius, node_share, kind, body_size, body_bounds, bound_radius,
+     travel_limit, body_compliance, mesh_root, tri, lower, upper, left, right, start, count,
+     order, face_normal, edge_normal, corner_normal, stiffness, damping, friction, smoothing,
+     slip_velocity, points_per_segment) = data
+    active, taken, body_force, body_moment, clearance, _ = scratch
     n_seg, n_pts = segments.shape[0], points_per_segment
     power, total, contacts, allowed = 0.0, 0.0, 0, np.inf
     stack = np.empty(STACK_DEPTH, np.int64)
@@ -347,21 +418,6 @@ def accumulate_contact(x, v, force, dt, inv_mass, segments, radius, node_share,
 
 
 @numba.njit(cache=True)
-def _update_nodes(x, v, force, inv_mass, dt):  # pragma: no cover - compiled
-    """The symplectic Euler update (S9) of ``x``, ``v`` (N, 3) in place; returns whether every
-    position is finite and the largest node speed after the update [m/s]."""
-    finite, top = True, 0.0
-    for i in range(x.shape[0]):
-        for k in range(3):
-            v[i, k] += dt * force[i, k] * inv_mass[i]
-            x[i, k] += dt * v[i, k]
-        top = max(top, v[i, 0] ** 2 + v[i, 1] ** 2 + v[i, 2] ** 2)
-        if not (math.isfinite(x[i, 0]) and math.isfinite(x[i, 1]) and math.isfinite(x[i, 2])):
-            finite = False
-    return finite, math.sqrt(top)
-
-
-@numba.njit(cache=True)
 def largest_speed(v):  # pragma: no cover - compiled
     """Largest node speed [m/s] of velocities ``v`` (N, 3)."""
     top = 0.0
@@ -397,88 +453,3 @@ def forget_clearance(active, clearance):  # pragma: no cover - compiled
     for b in range(active.shape[0]):
         if active[b]:
             clearance[b] = -np.inf
-
-
-@numba.njit(cache=True)
-def advance_contact(x, v, force, t0, dt, n_steps,
-                    segments, rest_length, EA, etaA, kink_strain, tension_only,
-                    inv_mass, gravity_force, load_nodes, load_force, load_ramp,
-                    hinges, hinge_stiffness, hinge_tau, hinge_rest,
-                    radius, node_share, kind, body_size, body_bounds, bound_radius, travel_limit,
-                    body_compliance, mesh_root, tri, lower, upper, left, right, start, count,
-                    order, face_normal, edge_normal, corner_normal,
-                    stiffness, damping, friction, smoothing, slip_velocity, points_per_segment,
-                    body_position, body_rotation, body_velocity, body_omega,
-                    body_quaternion, body_momentum, body_inv_mass, body_inertia,
-                    body_inv_inertia, body_gravity,
-                    taken, body_force, body_moment, clearance, travelled,
-                    near_dt):  # pragma: no cover
-    """Advance ``x``, ``v`` (N, 3) and the free bodies in place by up to ``n_steps`` steps:
-    symplectic Euler (S9) of the nodes with segment forces, external loads and contact, and
-    (R1)-(R4) of the free bodies (``body_inv_mass`` > 0).
-
-    ``near_dt`` [s] is the stable step with the contact springs (E1): a step longer than it is
-    taken only while no body is evaluated (E5); the loop stops before a step that would evaluate
-    a body at a longer step (status 3).
-
-    A body's contact is evaluated only in steps where some segment could have come within its
-    reach: ``clearance`` (B,) is the gap found at the last evaluation and ``travelled`` (B,) an
-    upper bound of how much that gap has shrunk since (node and body speeds times the steps,
-    (E4)); both carry over from call to call (start with ``-inf`` and 0).
-
-    Returns
-    -------
-    max_tension : float
-        Largest segment force met [N].
-    done : int
-        Steps done.
-    friction_work : float
-        Work dissipated by friction over those steps [J].
-    status : int
-        0: all steps done; 1: a non-finite value appeared (in step ``done``); 2: stopped before
-        step ``done + 1`` because a point near a body would move more than its travel limit;
-        3: stopped before step ``done + 1`` because a body comes within reach at a step longer
-        than ``near_dt``.
-    allowed_step : float
-        For status 2, the step [s] that respects the travel limit at that moment; for
-        status 3 (a body comes within reach at a step longer than ``near_dt``), ``near_dt``.
-    """
-    max_tension, work = 0.0, 0.0
-    n_bodies = kind.shape[0]
-    active = np.zeros(n_bodies, np.bool_)
-    scratch = np.empty((9, 3))  # for the free bodies' update
-    node_speed = largest_speed(v)
-    for step in range(n_steps):
-        peak = accumulate_forces(x, v, t0 + step * dt, force, segments, rest_length, EA, etaA,
-                                 kink_strain, tension_only, gravity_force, load_nodes,
-                                 load_force, load_ramp, hinges, hinge_stiffness, hinge_tau,
-                                 hinge_rest)
-        any_active = select_bodies(dt, node_speed, body_velocity, body_omega, bound_radius,
-                                   travelled, clearance, active, body_force, body_moment)
-        power, allowed = 0.0, np.inf
-        if any_active and dt > near_dt * (1.0 + 1e-12):  # (E5): contact needs the shorter step
-            forget_clearance(active, clearance)
-            return max_tension, step, work, 3, near_dt
-        if any_active:
-            power, _, _, allowed = accumulate_contact(
-                x, v, force, dt, inv_mass, segments, radius, node_share, kind, body_size,
-                body_bounds, bound_radius, travel_limit, body_compliance, mesh_root, tri,
-                lower, upper, left, right, start, count, order, face_normal, edge_normal,
-                corner_normal, stiffness, damping, friction, smoothing, slip_velocity,
-                points_per_segment, body_position, body_rotation, body_velocity, body_omega,
-                active, taken, body_force, body_moment, clearance)
-        if allowed < dt:
-            forget_clearance(active, clearance)  # evaluate again at the shorter step
-            return max_tension, step, work, 2, allowed
-        max_tension = max(max_tension, peak)
-        work += dt * power
-        finite, node_speed = _update_nodes(x, v, force, inv_mass, dt)
-        advance_bodies(dt, body_force, body_moment, body_inv_mass, body_inertia,
-                       body_inv_inertia, body_gravity, body_position, body_velocity,
-                       body_quaternion, body_rotation, body_momentum, body_omega, scratch)
-        for b in range(n_bodies):
-            travelled[b] += dt * (2.0 * node_speed + body_speed(body_velocity, body_omega,
-                                                                bound_radius, b))
-        if not finite:
-            return max_tension, step + 1, work, 1, np.inf
-    return max_tension, n_steps, work, 0, np.inf

@@ -20,6 +20,7 @@ arrays, which it freezes at compile time.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -33,9 +34,9 @@ from rodnet.kernels.so3 import FloatArray
 # rows: beta, beta'/phi (cosserat_strain.midpoint_coefficient), gamma, gamma'/phi
 # (so3.dexp_inv_coefficient), each a polynomial in phi^2 used below its switch angle
 _SERIES = np.ascontiguousarray(np.stack([
-    cosserat_strain._BETA_SERIES, cosserat_strain._BETA_D_SERIES,
-    so3._GAMMA_SERIES, so3._GAMMA_D_SERIES]), dtype=np.float64)
-_SWITCH_ANGLES = (float(cosserat_strain._SERIES_ANGLE), float(so3._GAMMA_SERIES_ANGLE))
+    cosserat_strain.BETA_SERIES, cosserat_strain.BETA_D_SERIES,
+    so3.GAMMA_SERIES, so3.GAMMA_D_SERIES]), dtype=np.float64)
+_SWITCH_ANGLES = (float(cosserat_strain.BETA_SERIES_ANGLE), float(so3.GAMMA_SERIES_ANGLE))
 SERIES_ARGUMENTS = (_SERIES, *_SWITCH_ANGLES)
 """The ``series, beta_angle, gamma_angle`` arguments of the compiled element loops: the Taylor
 series of the coefficients (C11) and the angles below which they are used."""
@@ -93,7 +94,7 @@ def internal_force_and_tangents(
     # first-touch page faults would otherwise cost as much as the assembly at large n
     force = np.empty((n, 12))
     stiffness_out, damping_out = np.empty((n, 12, 12)), np.empty((n, 12, 12))
-    _internal_force_and_tangents_kernel(*arrays, bool(tension_only), float(kink_strain), _SERIES,
+    _internal_force_andtangents_kernel(*arrays, bool(tension_only), float(kink_strain), _SERIES,
                                         *_SWITCH_ANGLES, force, stiffness_out, damping_out)
     return force, stiffness_out, damping_out
 
@@ -384,7 +385,7 @@ def _state_and_force(rest_length, reference_strain, stiffness, tau, x, q, veloci
                      coefficients, constitutive, velocity9, monitor_out):  # pragma: no cover - compiled
     """Internal force ``S [R_m N, P2 h - A M, P2^T h + A^T M]``, ``h = N x g``, per element.
 
-    When ``psi_out`` has ``n`` rows, also stores what :func:`_tangents_kernel` takes: ``psi``,
+    When ``psi_out`` has ``n`` rows, also stores what :func:`tangents_kernel` takes: ``psi``,
     ``R_m``, ``g``, ``[beta, beta'/phi, gamma, gamma'/phi]``, ``[stress, modulus,
     viscous_modulus]`` and ``[v2 - v1, W1, W2]``; when ``monitor_out`` has ``n`` rows, the axial
     force ``N_0`` [N] and the relative rotation angle ``|psi|`` [rad] of every element.
@@ -455,7 +456,7 @@ def _internal_force_kernel(rest_length, reference_strain, stiffness, tau, x, q, 
 
 
 @numba.njit(cache=True, parallel=True)
-def _internal_force_and_tangents_kernel(rest_length, reference_strain, stiffness, tau, x, q,
+def _internal_force_andtangents_kernel(rest_length, reference_strain, stiffness, tau, x, q,
                                         velocity, tension_only, kink, series, beta_angle,
                                         gamma_angle, force, stiffness_out,
                                         damping_out):  # pragma: no cover - compiled
@@ -465,7 +466,7 @@ def _internal_force_and_tangents_kernel(rest_length, reference_strain, stiffness
     _state_and_force(rest_length, reference_strain, stiffness, tau, x, q, velocity, tension_only,
                      kink, series, beta_angle, gamma_angle, force, psi, R_m, g, coefficients,
                      constitutive, velocity9, np.empty((0, 2)))
-    _tangents_kernel(psi, R_m, g, coefficients, constitutive, velocity9, 1.0 / rest_length,
+    tangents_kernel(psi, R_m, g, coefficients, constitutive, velocity9, 1.0 / rest_length,
                      stiffness_out, damping_out)
 
 
@@ -522,15 +523,48 @@ def _stress_resultants_kernel(stiffness, tau, strain, strain_rate, tension_only,
 
 
 # ---------------------------------------------------------------------------------------------
-# explicit step loop (FORMULATION.md §9b, (C46)-(C47)); driven by rodnet.integrate.explicit_rods
+# the rod part of the explicit step loop (FORMULATION.md §9b, (C46)-(C47)):
+# rodnet.kernels.explicit runs it
+
+
+class RodElements(NamedTuple):
+    """The read-only arrays of the rod elements of a model, as the explicit loop takes them.
+
+    ``pos_nodes``, ``rot_nodes`` (E, 2) int; ``offset_q`` (E, 2, 4) and ``offset_R``
+    (E, 2, 3, 3) the end offsets ``Q`` (``R_end = R_node Q``; no rows without offsets);
+    ``rest_length``, ``reference_strain``, ``stiffness``, ``tau`` as :func:`internal_force`;
+    ``tension_only``, ``kink``; ``series``, ``beta_angle``, ``gamma_angle``:
+    :data:`SERIES_ARGUMENTS`. A model without rod elements has E = 0.
+    """
+
+    pos_nodes: np.ndarray
+    rot_nodes: np.ndarray
+    offset_q: np.ndarray
+    offset_R: np.ndarray
+    rest_length: np.ndarray
+    reference_strain: np.ndarray
+    stiffness: np.ndarray
+    tau: np.ndarray
+    tension_only: bool
+    kink: float
+    series: np.ndarray
+    beta_angle: float
+    gamma_angle: float
+
+
+def no_rod_elements() -> RodElements:
+    """:class:`RodElements` with no element (models without rods)."""
+    z = np.zeros
+    return RodElements(z((0, 2), np.int64), z((0, 2), np.int64), z((0, 2, 4)), z((0, 2, 3, 3)),
+                       z(0), z((0, 6)), z((0, 6)), z(0), True, 0.0, *SERIES_ARGUMENTS)
 
 
 @numba.njit(inline="always")
-def _gather_element_state(x, quat, v, W, pos_nodes, rot_nodes, offset_q, offset_R, xe, qe,
-                          ve):  # pragma: no cover - compiled
+def gather_element_state(x, quat, v, W, pos_nodes, rot_nodes, offset_q, offset_R, xe, qe,
+                         ve):  # pragma: no cover - compiled
     """Element end positions ``xe`` (E, 2, 3), material quaternions ``qe`` (E, 2, 4) and velocities
     ``ve`` (E, 12) ``[v_a, W_a, v_b, W_b]`` (angular velocities in the end's material frame) from
-    the node state, as :meth:`rodnet.formulations.cosserat.CosseratModel._element_state`.
+    the node state, as :meth:`rodnet.models.cosserat.model.CosseratModel._element_state`.
 
     ``offset_q`` (E, 2, 4) and ``offset_R`` (E, 2, 3, 3): the end offsets ``Q`` as quaternions and
     matrices (``R_end = R_node Q``, ``W_end = Q^T W_node``), or arrays with no rows when there are
@@ -560,28 +594,32 @@ def _gather_element_state(x, quat, v, W, pos_nodes, rot_nodes, offset_q, offset_
                     ve[e, c + 3 + k] = W[r, k]
 
 
+@numba.njit(inline="always")
+def rod_forces(x, quat, v, W, rods, xe, qe, ve, force, monitor):  # pragma: no cover - compiled
+    """Element forces ``force`` (E, 12) in the element ends' frames from the node state
+    (positions ``x``, velocities ``v`` (N, 3), quaternions ``quat``, body angular velocities
+    ``W`` (R, 3)); returns the largest axial force [N] and the largest element rotation
+    ``|psi|`` [rad]. ``xe``, ``qe``, ``ve`` and ``monitor`` are scratch arrays."""
+    none3, none33, none4 = np.empty((0, 3)), np.empty((0, 3, 3)), np.empty((0, 4))
+    none18, none9 = np.empty((0, 18)), np.empty((0, 9))
+    gather_element_state(x, quat, v, W, rods.pos_nodes, rods.rot_nodes, rods.offset_q,
+                         rods.offset_R, xe, qe, ve)
+    _state_and_force(rods.rest_length, rods.reference_strain, rods.stiffness, rods.tau, xe, qe,
+                     ve, rods.tension_only, rods.kink, rods.series, rods.beta_angle,
+                     rods.gamma_angle, force, none3, none33, none3, none4, none18, none9,
+                     monitor)
+    peak, phi = 0.0, 0.0
+    for e in range(monitor.shape[0]):
+        peak = max(peak, monitor[e, 0])
+        phi = max(phi, monitor[e, 1])
+    return peak, phi
+
+
 @numba.njit(cache=True)
-def _nodal_forces(t, quat, pos_nodes, rot_nodes, offset_R, force, weight, load_nodes, load_rot,
-                  load_force, load_moment, load_ramp, f_node, m_node):  # pragma: no cover - compiled
-    """Applied minus internal force on every node: ``f_node`` (N, 3) [N], global, and
-    ``m_node`` (R, 3) [N m], body frame (the right-hand side of (C37) without the gyroscopic
-    term). ``force`` (E, 12) holds the element forces in the element ends' frames."""
+def scatter_forces(force, pos_nodes, rot_nodes, offset_R, f_node, m_node):  # pragma: no cover
+    """Subtract the element forces ``force`` (E, 12), in the element ends' frames, from the
+    node forces ``f_node`` (N, 3) [N], global, and moments ``m_node`` (R, 3) [N m], body frame."""
     has_offset = offset_R.shape[0] > 0
-    for i in range(f_node.shape[0]):
-        for k in range(3):
-            f_node[i, k] = weight[i, k]
-    m_node[:, :] = 0.0
-    for j in range(load_nodes.shape[0]):
-        scale = 1.0 if load_ramp[j] <= 0.0 else min(1.0, t / load_ramp[j])
-        a, r = load_nodes[j], load_rot[j]
-        w, u, v, z = quat[r, 0], quat[r, 1], quat[r, 2], quat[r, 3]
-        R = (1.0 - 2.0 * (v * v + z * z), 2.0 * (u * v - w * z), 2.0 * (u * z + w * v),
-             2.0 * (u * v + w * z), 1.0 - 2.0 * (u * u + z * z), 2.0 * (v * z - w * u),
-             2.0 * (u * z - w * v), 2.0 * (v * z + w * u), 1.0 - 2.0 * (u * u + v * v))
-        m0, m1, m2 = load_moment[j, 0], load_moment[j, 1], load_moment[j, 2]
-        for k in range(3):  # a global-axis moment in the body frame: R^T m
-            f_node[a, k] += scale * load_force[j, k]
-            m_node[r, k] += scale * (R[k] * m0 + R[3 + k] * m1 + R[6 + k] * m2)
     for e in range(pos_nodes.shape[0]):
         for s in range(2):
             a, r, c = pos_nodes[e, s], rot_nodes[e, s], 6 * s
@@ -595,127 +633,6 @@ def _nodal_forces(t, quat, pos_nodes, rot_nodes, offset_R, force, weight, load_n
             else:
                 for k in range(3):
                     m_node[r, k] -= force[e, c + 3 + k]
-
-
-@numba.njit(inline="always")
-def _update_explicit(x, quat, v, W, f_node, m_node, inv_mass, inertia, inv_inertia,
-                     h):  # pragma: no cover - compiled
-    """One symplectic Euler update (C46), (C47) in place; False when the state became
-    non-finite. ``inv_mass`` (N, 3) and ``inv_inertia`` (R, 3) are 0 on supported DOFs."""
-    bad = 0
-    for i in numba.prange(x.shape[0]):
-        for k in range(3):
-            v[i, k] += h * f_node[i, k] * inv_mass[i, k]
-            x[i, k] += h * v[i, k]
-        if not (math.isfinite(x[i, 0]) and math.isfinite(x[i, 1]) and math.isfinite(x[i, 2])):
-            bad += 1
-    for r in numba.prange(W.shape[0]):
-        w0, w1, w2 = W[r, 0], W[r, 1], W[r, 2]
-        j0, j1, j2 = inertia[r, 0] * w0, inertia[r, 1] * w1, inertia[r, 2] * w2
-        W[r, 0] = w0 + h * (m_node[r, 0] - (w1 * j2 - w2 * j1)) * inv_inertia[r, 0]
-        W[r, 1] = w1 + h * (m_node[r, 1] - (w2 * j0 - w0 * j2)) * inv_inertia[r, 1]
-        W[r, 2] = w2 + h * (m_node[r, 2] - (w0 * j1 - w1 * j0)) * inv_inertia[r, 2]
-        # q <- q o exp(h W) (so3_compiled.retract); below 0.05 rad the Taylor series of
-        # cos(a/2) and sin(a/2)/a to a^8, whose remainder is below 1e-17
-        d0, d1, d2 = h * W[r, 0], h * W[r, 1], h * W[r, 2]
-        a2 = d0 * d0 + d1 * d1 + d2 * d2
-        if a2 < 2.5e-3:
-            c = 1.0 + a2 * (-1.0 / 8.0 + a2 * (1.0 / 384.0 + a2 * (-1.0 / 46080.0 + a2 / 10321920.0)))
-            sn = 0.5 + a2 * (-1.0 / 48.0 + a2 * (1.0 / 3840.0 + a2 * (-1.0 / 645120.0 + a2 / 185794560.0)))
-        else:
-            angle = math.sqrt(a2)
-            c = math.cos(0.5 * angle)
-            sn = math.sin(0.5 * angle) / angle
-        bw, bx, by, bz = c, sn * d0, sn * d1, sn * d2
-        aw, ax, ay, az = quat[r, 0], quat[r, 1], quat[r, 2], quat[r, 3]
-        qw = aw * bw - ax * bx - ay * by - az * bz
-        qx = aw * bx + ax * bw + ay * bz - az * by
-        qy = aw * by - ax * bz + ay * bw + az * bx
-        qz = aw * bz + ax * by - ay * bx + az * bw
-        norm = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
-        if math.isfinite(norm) and norm > 0.0:
-            quat[r, 0], quat[r, 1], quat[r, 2], quat[r, 3] = qw / norm, qx / norm, qy / norm, qz / norm
-        else:
-            bad += 1
-    return bad == 0
-
-
-@numba.njit(inline="always")
-def _element_forces(x, quat, v, W, pos_nodes, rot_nodes, offset_q, offset_R, rest_length,
-                    reference_strain, stiffness, tau, tension_only, kink, series, beta_angle,
-                    gamma_angle, xe, qe, ve, force, monitor):  # pragma: no cover - compiled
-    """Element forces ``force`` (E, 12) in the element ends' frames from the node state; returns
-    the largest axial force [N] and the largest element rotation ``|psi|`` [rad]. ``xe``, ``qe``,
-    ``ve`` and ``monitor`` are scratch arrays (:func:`_advance_explicit`)."""
-    none3, none33, none4 = np.empty((0, 3)), np.empty((0, 3, 3)), np.empty((0, 4))
-    none18, none9 = np.empty((0, 18)), np.empty((0, 9))
-    _gather_element_state(x, quat, v, W, pos_nodes, rot_nodes, offset_q, offset_R, xe, qe, ve)
-    _state_and_force(rest_length, reference_strain, stiffness, tau, xe, qe, ve, tension_only,
-                     kink, series, beta_angle, gamma_angle, force, none3, none33, none3,
-                     none4, none18, none9, monitor)
-    peak, phi = 0.0, 0.0
-    for e in range(monitor.shape[0]):
-        peak = max(peak, monitor[e, 0])
-        phi = max(phi, monitor[e, 1])
-    return peak, phi
-
-
-@numba.njit(cache=True)
-def _step_length(base, phi, angles, step_factor, t, t_end):  # pragma: no cover - compiled
-    """The step (C50) at the largest element rotation ``phi`` [rad]: ``base`` [s] times
-    ``step_factor`` interpolated at ``phi``; returns it, the step actually taken from ``t`` (cut
-    to land on ``t_end`` [s]) and whether that is the last one."""
-    h = base * np.interp(phi, angles, step_factor)
-    remaining = t_end - t
-    if h >= remaining * (1.0 - 1e-9):
-        return h, remaining, True
-    return h, h, False
-
-
-@numba.njit(cache=True, parallel=True)
-def _advance_explicit(x, quat, v, W, t0, t_end, h0, pos_nodes, rot_nodes, offset_q, offset_R,
-                      rest_length, reference_strain, stiffness, tau, tension_only, kink, series,
-                      beta_angle, gamma_angle, angles, step_factor, inv_mass, inertia,
-                      inv_inertia, weight, load_nodes, load_rot, load_force, load_moment, load_ramp,
-                      xe, qe, ve, force, monitor, f_node, m_node):  # pragma: no cover - compiled
-    """Advance positions ``x`` (N, 3), quaternions ``quat`` (R, 4), velocities ``v`` (N, 3) and
-    body-frame angular velocities ``W`` (R, 3) in place by (C46), (C47) from ``t0`` to ``t_end``
-    [s], landing on ``t_end``.
-
-    Each step is ``h0`` [s] times ``step_factor`` interpolated at the largest element relative
-    rotation ``|psi|`` (``angles`` ascending, C50). ``xe`` ... ``m_node`` are scratch arrays.
-
-    Returns
-    -------
-    status : int
-        0 done, 1 the state became non-finite.
-    t : float
-        The time reached [s].
-    steps : int
-    h_min : float
-        The shortest step taken [s] (the last one, cut to land on ``t_end``, excepted).
-    peak, phi_max : float
-        The largest axial force [N] and element rotation [rad] met on the way.
-    """
-    peak, phi_max, h_min = 0.0, 0.0, h0
-    t, steps = t0, 0
-    while t < t_end:
-        step_peak, phi = _element_forces(x, quat, v, W, pos_nodes, rot_nodes, offset_q, offset_R,
-                                         rest_length, reference_strain, stiffness, tau,
-                                         tension_only, kink, series, beta_angle, gamma_angle, xe,
-                                         qe, ve, force, monitor)
-        peak = max(peak, step_peak)
-        phi_max = max(phi_max, phi)
-        h_full, h, last = _step_length(h0, phi, angles, step_factor, t, t_end)
-        h_min = min(h_min, h_full)
-        _nodal_forces(t, quat, pos_nodes, rot_nodes, offset_R, force, weight, load_nodes,
-                      load_rot, load_force, load_moment, load_ramp, f_node, m_node)
-        finite = _update_explicit(x, quat, v, W, f_node, m_node, inv_mass, inertia, inv_inertia, h)
-        steps += 1
-        t = t_end if last else t + h
-        if not finite:
-            return 1, t, steps, h_min, peak, phi_max
-    return 0, t, steps, h_min, peak, phi_max
 
 
 # ---------------------------------------------------------------------------------------------
@@ -788,7 +705,7 @@ def _midpoint_derivative(psi, w, beta, beta_d, out):  # pragma: no cover - compi
 
 
 @numba.njit(cache=True)
-def _tangents_kernel(psi, R_m, g, coefficients, constitutive, velocity9, inv_le,
+def tangents_kernel(psi, R_m, g, coefficients, constitutive, velocity9, inv_le,
                      stiffness_out, damping_out):  # pragma: no cover - compiled
     """Per element: ``K9 = B9^T (D B9 + D_v U9 L9) / Le + Q9 L9``, ``C9 = B9^T D_v B9 / Le``.
 
@@ -909,39 +826,3 @@ def _tangents_kernel(psi, R_m, g, coefficients, constitutive, velocity9, inv_le,
                         r, c = blocks[bi] + i, blocks[bj] + j
                         stiffness_out[e, 3 * bi + i, 3 * bj + j] = sign * K9[r, c]
                         damping_out[e, 3 * bi + i, 3 * bj + j] = sign * C9[r, c]
-
-
-def advance_explicit(x: FloatArray, quat: FloatArray, v: FloatArray, W: FloatArray, t0: float,
-                     t_end: float, h0: float, element: tuple, control: tuple, nodes: tuple,
-                     scratch: tuple) -> tuple[int, float, int, float, float, float]:
-    """Explicit steps (C46)-(C47) from ``t0`` to ``t_end`` [s], in place; returns
-    ``status, t, steps, h_min, peak, phi_max`` as :func:`_advance_explicit`.
-
-    Parameters
-    ----------
-    x (N, 3), quat (R, 4), v (N, 3), W (R, 3) : float
-        Positions [m], unit quaternions, velocities [m/s], body-frame angular velocities [rad/s].
-    h0 : float
-        The step [s] while every element's relative rotation is moderate.
-    element : tuple
-        ``pos_nodes, rot_nodes`` (E, 2) int, ``offset_q`` (E, 2, 4), ``offset_R`` (E, 2, 3, 3)
-        (no rows without end offsets), ``rest_length, reference_strain, stiffness, tau`` as
-        :func:`internal_force`, ``tension_only``, ``kink_strain``.
-    control : tuple
-        ``angles`` (K,) [rad] ascending and ``step_factor`` (K,) (C50); beyond the last angle
-        the last factor.
-    nodes : tuple
-        ``inv_mass`` (N, 3) [1/kg], ``inertia`` and ``inv_inertia`` (R, 3) (inverses 0 on
-        supported DOFs), ``weight`` (N, 3) [N], then the dead loads ``load_nodes, load_rot`` (L,)
-        int, ``load_force, load_moment`` (L, 3), ``load_ramp`` (L,).
-    scratch : tuple
-        ``xe`` (E, 2, 3), ``qe`` (E, 2, 4), ``ve`` (E, 12), ``force`` (E, 12), ``monitor``
-        (E, 2), ``f_node`` (N, 3), ``m_node`` (R, 3).
-    """
-    (pos_nodes, rot_nodes, offset_q, offset_R, rest_length, reference_strain, stiffness, tau,
-     tension_only, kink) = element
-    angles, step_factor = control
-    return _advance_explicit(x, quat, v, W, t0, t_end, h0, pos_nodes, rot_nodes, offset_q,
-                             offset_R, rest_length, reference_strain, stiffness, tau,
-                             bool(tension_only), float(kink), _SERIES, *_SWITCH_ANGLES, angles,
-                             step_factor, *nodes, *scratch)

@@ -19,12 +19,12 @@ from rodnet.kernels.so3 import (
 
 # Taylor coefficients in phi^2 of beta and beta'/phi (exact rationals, through phi^14); the switch
 # angle is chosen as for gamma in rodnet.kernels.so3.
-_BETA_SERIES = np.array([1 / 8, 1 / 384, 1 / 15360, 17 / 10321920, 31 / 743178240,
+BETA_SERIES = np.array([1 / 8, 1 / 384, 1 / 15360, 17 / 10321920, 31 / 743178240,
                          691 / 653996851200, 5461 / 204047017574400, 929569 / 1371195958099968000])
-_BETA_D_SERIES = np.array([1 / 192, 1 / 3840, 17 / 1720320, 31 / 92897280, 691 / 65399685120,
+BETA_D_SERIES = np.array([1 / 192, 1 / 3840, 17 / 1720320, 31 / 92897280, 691 / 65399685120,
                            5461 / 17003918131200, 929569 / 97942568435712000,
                            3202291 / 11655165643849728000])
-_SERIES_ANGLE = 0.5
+BETA_SERIES_ANGLE = 0.5
 
 ROTATION_STOP = 5.0
 """The element relative rotation ``|psi|`` [rad] beyond which the rotation stop (C52) acts."""
@@ -37,13 +37,13 @@ def midpoint_coefficient(phi: FloatArray) -> tuple[FloatArray, FloatArray]:
     ``R_m = R1 exp(hat(psi/2))``, ``dphi_m = P2^T dtheta1 + P2 dtheta2``, ``P2 = I/2 + beta hat(psi)``.
     """
     p2 = phi * phi
-    small = phi < _SERIES_ANGLE
+    small = phi < BETA_SERIES_ANGLE
     p = np.where(small, 1.0, phi)
     t = np.tan(0.25 * p)
     closed = t / (2.0 * p)
     closed_d = ((1.0 + t * t) / (8.0 * p) - t / (2.0 * p * p)) / p
-    return (np.where(small, polyval(p2, _BETA_SERIES), closed),
-            np.where(small, polyval(p2, _BETA_D_SERIES), closed_d))
+    return (np.where(small, polyval(p2, BETA_SERIES), closed),
+            np.where(small, polyval(p2, BETA_D_SERIES), closed_d))
 
 
 def kinematics(x: FloatArray, q: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:

@@ -3,16 +3,16 @@
 The same equations as :func:`rodnet.kernels.cosserat_tangent.tangents` (``elements/cosserat/
 FORMULATION.md`` §Linearisation, §Tangent), written per element: the NumPy path spends most of its
 time on many small (n, 3, 3) operations, which a loop keeps in cache. The loop itself is
-:func:`rodnet.kernels.cosserat_compiled._tangents_kernel`, which
+:func:`rodnet.kernels.cosserat_compiled.tangents_kernel`, which
 :func:`rodnet.kernels.cosserat_compiled.internal_force_and_tangents` runs right after the force
-loop; numba's cache does not follow compiled calls across files, so both live in that module.
+loop; both live in that module.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from rodnet.kernels.cosserat_compiled import _tangents_kernel
+from rodnet.kernels.cosserat_compiled import tangents_kernel
 from rodnet.kernels.cosserat_strain import midpoint_coefficient
 from rodnet.kernels.so3 import FloatArray, dexp_inv_coefficient
 
@@ -32,7 +32,7 @@ def tangents(
     stiffness_out, damping_out = np.empty((n, 12, 12)), np.empty((n, 12, 12))
     constitutive = np.concatenate([stress, modulus, viscous_modulus], axis=1)
     # contiguous inputs keep to one compiled specialisation
-    _tangents_kernel(np.ascontiguousarray(psi), np.ascontiguousarray(R_m), np.ascontiguousarray(g),
+    tangents_kernel(np.ascontiguousarray(psi), np.ascontiguousarray(R_m), np.ascontiguousarray(g),
                      coefficients, constitutive, np.ascontiguousarray(velocity9), 1.0 / rest_length,
                      stiffness_out, damping_out)
     return stiffness_out, damping_out

@@ -3,15 +3,33 @@
 A hinge ``(a, b, c)`` joins two consecutive segments of a thread at node ``b``; its bending
 measure is ``kappa = e1 / l1 - e0 / l0`` (edge vectors over their rest lengths). Equations
 ``elements/kirchhoff/FORMULATION.md`` (K2)-(K5). The compiled explicit loop uses the same formulas
-per hinge (:func:`rodnet.kernels.lumped_explicit.add_hinge_forces`).
+per hinge (:func:`rodnet.kernels.segments.hinge_forces`).
 """
 
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 
 FloatArray = NDArray[np.float64]
+
+
+class Hinges(NamedTuple):
+    """Bending hinges (K1): ``nodes`` (H, 3) int ``(a, b, c)``, ``stiffness`` (H,)
+    ``k_h = EI / lbar`` [N m], ``tau`` (H,) retardation time [s], ``rest`` (H, 2) rest lengths of
+    the segments ``(a, b)`` and ``(b, c)`` [m]."""
+
+    nodes: NDArray[np.int64]
+    stiffness: FloatArray
+    tau: FloatArray
+    rest: FloatArray
+
+
+def no_hinges() -> Hinges:
+    """No hinges: the lumped model and cables."""
+    return Hinges(np.zeros((0, 3), np.int64), np.zeros(0), np.zeros(0), np.zeros((0, 2)))
 
 STRAIGHT = 1e-20
 """Below this ``|kappa|^2`` the bending direction is undefined and the damping term is left out

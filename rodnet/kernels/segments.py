@@ -1,43 +1,41 @@
-"""Compiled force loop and explicit (symplectic Euler) step loop of the lumped model.
+"""Compiled forces of the lumped model's segments and of the bending hinges of Kirchhoff threads.
 
-One call advances the state by ``n_steps`` steps without returning to Python; the force law is
-the one of :mod:`rodnet.kernels.tension` (``elements/spring/FORMULATION.md`` (S3)-(S5)), written
-out per segment, plus the bending hinges of Kirchhoff threads (``elements/kirchhoff/FORMULATION.md``
-(K3), (K4); none for the lumped model and cables), and the update is (S9). ``tests/reference/test_lumped.py`` checks this loop
-against the vectorised NumPy forces.
+The force law is the one of :mod:`rodnet.kernels.tension` (``elements/spring/FORMULATION.md``
+(S3)-(S5)), written out per segment; the hinges are ``elements/kirchhoff/FORMULATION.md`` (K3),
+(K4). The explicit step loop (:mod:`rodnet.kernels.explicit`) calls both every step;
+``tests/reference/test_lumped.py`` checks them against the vectorised NumPy forces.
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numba
 import numpy as np
 
 
-@numba.njit(cache=True)
-def accumulate_forces(x, v, t, force,
-                      segments, rest_length, EA, etaA, kink_strain, tension_only,
-                      gravity_force, load_nodes, load_force, load_ramp,
-                      hinges, hinge_stiffness, hinge_tau, hinge_rest):  # pragma: no cover
-    """Overwrite ``force`` (N, 3) with the total nodal force [N] at positions ``x`` and
-    velocities ``v`` (N, 3) at time ``t``; return the largest segment force [N].
+class Segments(NamedTuple):
+    """Spring-damper segments (S9): node ``pairs`` (S, 2), ``rest_length``, ``EA`` [N],
+    ``etaA`` [N s] (S,), ``kink_strain``, ``tension_only``."""
 
-    ``hinges`` (H, 3), ``hinge_stiffness``, ``hinge_tau`` (H,) and ``hinge_rest`` (H, 2): the
-    bending hinges of Kirchhoff threads (:func:`add_hinge_forces`), no rows for the lumped model
-    and cables.
-    """
-    n_nodes, n_seg = x.shape[0], segments.shape[0]
+    pairs: np.ndarray
+    rest_length: np.ndarray
+    EA: np.ndarray
+    etaA: np.ndarray
+    kink_strain: float
+    tension_only: bool
+
+
+@numba.njit(cache=True)
+def segment_forces(x, v, force, pairs, rest_length, EA, etaA, kink_strain,
+                   tension_only):  # pragma: no cover - compiled
+    """Add the forces [N] of the tension-only (or linear) Kelvin-Voigt segments ``pairs`` (S, 2)
+    at positions ``x`` and velocities ``v`` (N, 3) to ``force`` (N, 3), (S3)-(S5), (S7); return
+    the largest segment force [N]."""
     max_tension = 0.0
-    for i in range(n_nodes):
-        for k in range(3):
-            force[i, k] = gravity_force[i, k]
-    for j in range(load_nodes.shape[0]):
-        scale = 1.0 if load_ramp[j] <= 0.0 else min(1.0, t / load_ramp[j])
-        for k in range(3):
-            force[load_nodes[j], k] += scale * load_force[j, k]
-    for s in range(n_seg):
-        a, b = segments[s, 0], segments[s, 1]
+    for s in range(pairs.shape[0]):
+        a, b = pairs[s, 0], pairs[s, 1]
         d0 = x[b, 0] - x[a, 0]
         d1 = x[b, 1] - x[a, 1]
         d2 = x[b, 2] - x[a, 2]
@@ -67,7 +65,6 @@ def accumulate_forces(x, v, t, force,
         force[b, 0] -= n * d0
         force[b, 1] -= n * d1
         force[b, 2] -= n * d2
-    add_hinge_forces(x, v, force, hinges, hinge_stiffness, hinge_tau, hinge_rest)
     return max_tension
 
 
@@ -77,7 +74,7 @@ finite values, so a non-finite state still shows."""
 
 
 @numba.njit(cache=True, fastmath=HINGE_FASTMATH)
-def add_hinge_forces(x, v, force, hinges, stiffness, tau, rest):  # pragma: no cover - compiled
+def hinge_forces(x, v, force, hinges, stiffness, tau, rest):  # pragma: no cover - compiled
     """Add the forces [N] of the bending hinges ``(a, b, c)`` (H, 3) to ``force`` (N, 3):
     (K3), (K4), as :func:`rodnet.kernels.hinge.hinge_force`.
 
@@ -107,47 +104,3 @@ def add_hinge_forces(x, v, force, hinges, stiffness, tau, rest):  # pragma: no c
         force[c, 0] -= g * i1 * k0
         force[c, 1] -= g * i1 * k1
         force[c, 2] -= g * i1 * k2
-
-
-@numba.njit(cache=True)
-def update_state(x, v, force, inv_mass, dt):  # pragma: no cover - compiled
-    """One symplectic Euler update (S9) of ``x``, ``v`` (N, 3) in place: ``v += dt force / m``,
-    then ``x += dt v``, with ``force`` (N, 3) [N] and ``inv_mass`` (N,) [1/kg].
-
-    Returns
-    -------
-    finite : bool
-        False when a position became non-finite.
-    """
-    finite = True
-    for i in range(x.shape[0]):
-        for k in range(3):
-            v[i, k] += dt * force[i, k] * inv_mass[i]
-            x[i, k] += dt * v[i, k]
-        if not (math.isfinite(x[i, 0]) and math.isfinite(x[i, 1]) and math.isfinite(x[i, 2])):
-            finite = False
-    return finite
-
-
-@numba.njit(cache=True)
-def advance(x, v, force, t0, dt, n_steps,
-            segments, rest_length, EA, etaA, kink_strain, tension_only,
-            inv_mass, gravity_force, load_nodes, load_force, load_ramp, hinges, hinge_stiffness,
-            hinge_tau, hinge_rest):  # pragma: no cover
-    """Advance positions ``x`` (N, 3) and velocities ``v`` (N, 3) in place by ``n_steps``
-    symplectic Euler steps (S9).
-
-    ``force`` (N, 3) is scratch space. Returns the largest segment force [N] met on the way
-    (snap loads fall between saved frames) and the number of steps done: fewer than ``n_steps``
-    when a non-finite value appeared.
-    """
-    max_tension = 0.0
-    for step in range(n_steps):
-        peak = accumulate_forces(x, v, t0 + step * dt, force, segments, rest_length, EA, etaA,
-                                 kink_strain, tension_only, gravity_force, load_nodes,
-                                 load_force, load_ramp, hinges, hinge_stiffness, hinge_tau,
-                                 hinge_rest)
-        max_tension = max(max_tension, peak)
-        if not update_state(x, v, force, inv_mass, dt):
-            return max_tension, step + 1
-    return max_tension, n_steps

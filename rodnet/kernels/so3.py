@@ -20,7 +20,7 @@ FloatArray = NDArray[np.float64]
 
 # Below this angle (phi - sin phi)/phi^3 is taken from its series: the closed form loses digits to
 # cancellation, the series through phi^8 is exact to round-off (next term < 1e-20 relative).
-_SERIES_ANGLE = 0.1
+DEXP_SERIES_ANGLE = 0.1
 
 
 def hat(v: FloatArray) -> FloatArray:
@@ -147,20 +147,20 @@ def _dexp_coefficient(phi: FloatArray) -> FloatArray:
     """``(phi - sin phi)/phi^3``."""
     p2 = phi * phi
     series = 1 / 6 - p2 * (1 / 120 - p2 * (1 / 5040 - p2 * (1 / 362880 - p2 / 39916800)))
-    small = phi < _SERIES_ANGLE
+    small = phi < DEXP_SERIES_ANGLE
     p = np.where(small, 1.0, phi)
     return np.where(small, series, (p - np.sin(p)) / (p * p * p))
 
 
 # Taylor coefficients in phi^2 of gamma and gamma'/phi (exact rationals, through phi^14)
-_GAMMA_SERIES = np.array([1 / 12, 1 / 720, 1 / 30240, 1 / 1209600, 1 / 47900160,
+GAMMA_SERIES = np.array([1 / 12, 1 / 720, 1 / 30240, 1 / 1209600, 1 / 47900160,
                           691 / 1307674368000, 1 / 74724249600, 3617 / 10670622842880000])
-_GAMMA_D_SERIES = np.array([1 / 360, 1 / 7560, 1 / 201600, 1 / 5987520, 691 / 130767436800,
+GAMMA_D_SERIES = np.array([1 / 360, 1 / 7560, 1 / 201600, 1 / 5987520, 691 / 130767436800,
                             1 / 6227020800, 3617 / 762187345920000, 43867 / 319318388573184000])
 # Below this angle the closed forms of gamma lose more digits to cancellation than the series
 # (through phi^14) loses to truncation; at the switch both agree to ~1e-14 (gamma) and ~1e-12
 # (gamma'/phi) relative.
-_GAMMA_SERIES_ANGLE = 0.5
+GAMMA_SERIES_ANGLE = 0.5
 
 
 def dexp_inv_coefficient(phi: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -169,15 +169,15 @@ def dexp_inv_coefficient(phi: FloatArray) -> tuple[FloatArray, FloatArray]:
     ``gamma`` is the coefficient of ``hat(psi)^2`` in :func:`dexp_inv`, ``phi = |psi| < 2 pi``.
     """
     p2 = phi * phi
-    small = phi < _GAMMA_SERIES_ANGLE
+    small = phi < GAMMA_SERIES_ANGLE
     p = np.where(small, 1.0, phi)
     inv_p = 1.0 / p
     half_cot = 0.5 / np.tan(0.5 * p)
     sin_half = np.sin(0.5 * p)
     closed = inv_p * (inv_p - half_cot)
     closed_d = inv_p * inv_p * (inv_p * (half_cot - 2.0 * inv_p) + 0.25 / (sin_half * sin_half))
-    return (np.where(small, polyval(p2, _GAMMA_SERIES), closed),
-            np.where(small, polyval(p2, _GAMMA_D_SERIES), closed_d))
+    return (np.where(small, polyval(p2, GAMMA_SERIES), closed),
+            np.where(small, polyval(p2, GAMMA_D_SERIES), closed_d))
 
 
 def dexp(psi: FloatArray) -> FloatArray:

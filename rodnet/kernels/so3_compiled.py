@@ -1,7 +1,7 @@
 """Compiled versions of the per-node rotation updates used every Newton iteration.
 
 Same formulas as :mod:`rodnet.kernels.so3` (``retract``, ``dexp``) and the gyroscopic term of
-:class:`~rodnet.formulations.cosserat.CosseratModel`; ``tests/kernels/test_so3.py`` checks
+:class:`~rodnet.models.cosserat.model.CosseratModel`; ``tests/kernels/test_so3.py`` checks
 ``retract`` and ``gyroscopic`` against the NumPy versions. ``dexp`` only enters Newton's iteration
 matrix, where its last bits do not matter.
 """
@@ -62,7 +62,7 @@ def gyroscopic(W, J):  # pragma: no cover - compiled
 def dexp(psi: np.ndarray) -> np.ndarray:
     """Tangent operators ``T(psi)`` (n, 3, 3) of rotation vectors ``psi`` (n, 3), as
     :func:`rodnet.kernels.so3.dexp`."""
-    return _dexp_kernel(np.ascontiguousarray(psi, dtype=np.float64), so3._SERIES_ANGLE)
+    return _dexp_kernel(np.ascontiguousarray(psi, dtype=np.float64), so3.DEXP_SERIES_ANGLE)
 
 
 @numba.njit(cache=True)

@@ -56,6 +56,13 @@ def available() -> int:
     return int(numba.config.NUMBA_NUM_THREADS)
 
 
+def current() -> int:
+    """The number of threads the compiled parallel loops use now."""
+    import numba
+
+    return int(numba.get_num_threads())
+
+
 def use_threads(work_items: int, requested: int | None = None) -> int:
     """Set and return the number of threads of the compiled parallel loops for a problem with
     ``work_items`` independent items per loop (elements or segments).

@@ -1,42 +1,25 @@
 """Kirchhoff threads: the lumped cable plus a bending hinge at every node inside a thread.
 
 Equations: ``elements/kirchhoff/FORMULATION.md``. The segments, masses, supports and loads are
-the lumped model's (:func:`rodnet.reference.lumped.build_lumped`); this module finds the hinges
-(K1) and refuses the scenes the model cannot represent, naming the key.
+the lumped model's (:func:`rodnet.models.lumped.build_lumped`); this module finds the hinges
+(K1) and refuses the scenes the model cannot represent, naming the key (which integrators and
+run types it takes is in the model table, :mod:`rodnet.models.registry`).
 """
 
 from __future__ import annotations
-
-from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 
 from rodnet.config import Scene
 from rodnet.errors import SceneError
+from rodnet.kernels.hinge import Hinges
+from rodnet.models.lumped import FloatArray, LumpedModel, build_lumped
+from rodnet.state import Configuration
 from rodnet.topology import Structure
-
-EXPLICIT = ("explicit", "rk45")
-"""The integrators that run Kirchhoff threads: the hinges have no tangent for the others."""
 
 STRAIGHT_COSINE = 1.0 - 1e-12
 """A stress-free hinge whose segments' cosine is below this is not straight."""
-
-
-class Hinges(NamedTuple):
-    """Bending hinges (K1): ``nodes`` (H, 3) int ``(a, b, c)``, ``stiffness`` (H,)
-    ``k_h = EI / lbar`` [N m], ``tau`` (H,) retardation time [s], ``rest`` (H, 2) rest lengths of
-    the segments ``(a, b)`` and ``(b, c)`` [m]."""
-
-    nodes: NDArray[np.int64]
-    stiffness: NDArray[np.float64]
-    tau: NDArray[np.float64]
-    rest: NDArray[np.float64]
-
-    @classmethod
-    def none(cls) -> Hinges:
-        """No hinges: the lumped model and cables."""
-        return cls(np.zeros((0, 3), np.int64), np.zeros(0), np.zeros(0), np.zeros((0, 2)))
 
 
 def hinges_of(scene: Scene, structure: Structure) -> Hinges:
@@ -76,21 +59,21 @@ def _check_straight(scene: Scene, structure: Structure, nodes: NDArray[np.int64]
                          "use model.type = 'cosserat' for curved rods")
 
 
-def check_kirchhoff(scene: Scene) -> None:
-    """Refuse what Kirchhoff threads cannot represent, naming the key (FORMULATION.md, Limits)."""
-    sim, model = scene.simulation, scene.model
+def build_kirchhoff(scene: Scene, structure: Structure,
+                    ) -> tuple[LumpedModel, Configuration, FloatArray]:
+    """The lumped model of the scene with a bending hinge at every node inside a thread
+    (``model.bending``; without it, the cable), its initial configuration and velocities.
+
+    Raises
+    ------
+    SceneError
+        For a clamp (the hinges carry no rotations to clamp) or a thread that is not straight in
+        its stress-free state.
+    """
     cosserat = "; use model.type = 'cosserat' for it"
-    if sim.type == "static":
-        raise SceneError("simulation.type", sim.type, "Kirchhoff threads run 'dynamic' only "
-                         "(the hinges have no tangent for the static solver)" + cosserat)
-    if scene.integrator not in EXPLICIT:
-        raise SceneError("simulation.integrator", scene.integrator,
-                         f"Kirchhoff threads run with {' or '.join(map(repr, EXPLICIT))} only "
-                         "(the hinges have no tangent for implicit steps)" + cosserat)
-    if scene.net is not None and model.knots != "pinned":
-        raise SceneError("model.knots", model.knots, "Kirchhoff threads need 'pinned' knots: a "
-                         "hinge joins segments of one thread, so the knots pass no moment" + cosserat)
     for i, support in enumerate(scene.supports):
         if support.dofs is None and support.fix == "clamp":
             raise SceneError(f"supports[{i}].fix", support.fix, "Kirchhoff threads have no "
                              "rotations to clamp: use fix = 'pin'" + cosserat)
+    hinges = hinges_of(scene, structure) if scene.model.bending else None
+    return build_lumped(scene, structure, hinges)

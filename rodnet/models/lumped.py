@@ -1,14 +1,18 @@
-"""The lumped-parameter reference net: point masses joined by tension-only Kelvin-Voigt segments.
+"""The lumped-parameter net: point masses joined by tension-only Kelvin-Voigt segments.
 
 Equations: ``elements/spring/FORMULATION.md``. Each segment of the :class:`~rodnet.topology.Structure`
-is one spring-damper (k = EA / l0, c = tau EA / l0 with tau = viscosity / E); half of each segment's mass goes to
-each end, concentrated masses are added, supported nodes do not move.
+is one spring-damper (k = EA / l0, c = tau EA / l0 with tau = viscosity / E); half of each
+segment's mass goes to each end, concentrated masses are added, supported nodes do not move. The
+same model runs cable threads (Cosserat threads without bending and torsion: the lumped model's
+equations) and, with bending hinges, Kirchhoff threads (:mod:`rodnet.models.kirchhoff`). Its
+configuration is a :class:`~rodnet.state.Configuration` without rotations.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sp
@@ -16,11 +20,13 @@ from numpy.typing import NDArray
 
 from rodnet.config import Scene
 from rodnet.errors import SceneError
-from rodnet.formulations.kirchhoff import Hinges
-from rodnet.assembly import SparsityPattern
+from rodnet.kernels import explicit as kx
 from rodnet.kernels.cable import cable_tangents, element_blocks
-from rodnet.kernels.hinge import hinge_energy, hinge_force, hinge_frequency
+from rodnet.kernels.cosserat_compiled import RodElements, no_rod_elements
+from rodnet.kernels.hinge import Hinges, hinge_energy, hinge_force, hinge_frequency, no_hinges
+from rodnet.kernels.segments import Segments
 from rodnet.kernels.tension import axial_energy, axial_force
+from rodnet.state import Configuration
 from rodnet.topology import Structure
 
 FloatArray = NDArray[np.float64]
@@ -55,9 +61,9 @@ class LumpedModel:
         mass * g [N].
     load_nodes : (L,) int, load_force : (L, 3) float, load_ramp : (L,) float
         Dead point loads [N] and their ramp times [s] (0: applied at once).
-    hinges : Hinges
-        Bending hinges of Kirchhoff threads, ``elements/kirchhoff/FORMULATION.md`` (K1)
-        (:class:`rodnet.formulations.kirchhoff.Hinges`); none for the lumped model and cables.
+    hinges : rodnet.kernels.explicit.Hinges
+        Bending hinges of Kirchhoff threads, ``elements/kirchhoff/FORMULATION.md`` (K1); none for
+        the lumped model and cables.
     """
 
     structure: Structure
@@ -71,7 +77,7 @@ class LumpedModel:
     load_nodes: NDArray[np.int64]
     load_force: FloatArray
     load_ramp: FloatArray
-    hinges: Hinges = field(default_factory=Hinges.none, kw_only=True)
+    hinges: Hinges = field(default_factory=no_hinges, kw_only=True)
 
     @property
     def segments(self) -> NDArray[np.int64]:
@@ -80,6 +86,20 @@ class LumpedModel:
     @property
     def rest_length(self) -> FloatArray:
         return self.structure.rest_length
+
+    @property
+    def node_mass(self) -> FloatArray:
+        """(N,) translational node masses [kg]."""
+        return self.mass
+
+    @property
+    def n_nodes(self) -> int:
+        return self.structure.n_nodes
+
+    n_rot = 0
+    """No rotation nodes."""
+
+    # --- segment kinematics and forces ---------------------------------------------------
 
     def segment_kinematics(self, x: FloatArray, v: FloatArray) -> tuple[FloatArray, ...]:
         """Length l (E,), unit direction t (E, 3), strain e = l/l0 - 1 and its rate (E,), (S2)."""
@@ -94,11 +114,6 @@ class LumpedModel:
         """Axial force of every segment [N], (E,)."""
         _, _, e, rate = self.segment_kinematics(x, v)
         return axial_force(e, rate, self.EA, self.etaA, self.kink_strain, self.tension_only)
-
-    def frame_arrays(self, x: FloatArray, v: FloatArray) -> dict[str, FloatArray]:
-        """What a saved frame holds: positions, velocities (N, 3) and segment ``tension`` (E,)."""
-        vv = np.asarray(v).reshape(-1, 3)
-        return {"positions": np.array(x), "velocities": np.array(vv), "tension": self.tension(x, vv)}
 
     def external_force(self, t: float) -> FloatArray:
         """Gravity plus ramped dead loads at time ``t`` [N], (N, 3)."""
@@ -120,38 +135,9 @@ class LumpedModel:
         return f
 
     def force(self, x: FloatArray, v: FloatArray, t: float) -> FloatArray:
-        """Total force on every node [N], (N, 3): segment forces (S7) plus external forces."""
+        """Total force on every node [N], (N, 3): segment forces (S7) plus external forces (the
+        NumPy oracle of the compiled :func:`rodnet.kernels.explicit.forces`)."""
         return self.segment_force(x, v) + self.external_force(t)
-
-    def acceleration(self, x: FloatArray, v: FloatArray, t: float) -> FloatArray:
-        """Nodal acceleration [m/s^2], (N, 3); zero at supported nodes.
-
-        Uses the compiled force loop (:mod:`rodnet.kernels.lumped_explicit`), which tests check
-        against the NumPy :meth:`force`.
-        """
-        from rodnet.kernels.lumped_explicit import accumulate_forces
-
-        f = np.empty_like(x)
-        accumulate_forces(x, v, t, f, *self.kernel_arguments())
-        return f * self.inv_mass[:, None]
-
-    def kernel_arguments(self) -> tuple:
-        """The model's arrays in the order the compiled kernels take them (after the state)."""
-        return (self.segments, self.rest_length, self.EA, self.etaA, self.kink_strain,
-                self.tension_only, self.gravity_force, self.load_nodes, self.load_force,
-                self.load_ramp, *self.hinges)
-
-    def energy(self, x: FloatArray, v: FloatArray, t: float) -> dict[str, float]:
-        """Kinetic, elastic and external-load potential energy [J], (S8); elastic includes the
-        hinges' bending energy (K2)."""
-        _, _, e, _ = self.segment_kinematics(x, v)
-        elastic = axial_energy(e, self.EA, self.rest_length, self.kink_strain, self.tension_only)
-        if len(self.hinges.nodes):
-            h = self.hinges
-            elastic = np.append(elastic, hinge_energy(x, h.nodes, h.stiffness, h.rest))
-        kinetic = 0.5 * np.sum(self.mass * np.einsum("ij,ij->i", v, v))
-        potential = -float(np.sum(self.external_force(t) * x))
-        return {"kinetic": float(kinetic), "elastic": float(elastic.sum()), "potential": potential}
 
     def stable_step(self) -> float:
         """Largest stable step [s] of the explicit (symplectic Euler) scheme, (S10).
@@ -171,7 +157,7 @@ class LumpedModel:
         omega = np.sqrt(omega2)
         return float(np.min(damped_limit(omega, self.etaA / self.EA), initial=np.inf))
 
-    # --- the System protocol of rodnet.integrate.system (configuration q = positions (N, 3)) ---
+    # --- what the system composes (rodnet.models.system) ---------------------------------
 
     @property
     def n_dof(self) -> int:
@@ -186,32 +172,31 @@ class LumpedModel:
     def force_scale(self) -> float:
         return float(self.EA.max())
 
-    @property
+    @cached_property
     def free(self) -> NDArray[np.bool_]:
         return np.repeat(self.inv_mass > 0.0, 3)
 
-    @property
+    @cached_property
     def dof_mass(self) -> FloatArray:
         return np.repeat(self.mass, 3)
 
-    def generalized_force(self, x: FloatArray, v: FloatArray, t: float, load_factor: float = 1.0) -> FloatArray:
-        """g = f_int - f_ext (n_dof,) for flat velocities ``v`` (n_dof,)."""
-        f = self.segment_force(x, v.reshape(-1, 3)) + load_factor * self.external_force(t)
-        return -f.ravel()
+    @cached_property
+    def groups(self) -> list[NDArray[np.int64]]:
+        """DOFs of the blocks of :meth:`forces`: one (E, 6) group, the segments' ``[x_a, x_b]``."""
+        return [(3 * self.segments[:, :, None] + np.arange(3)).reshape(-1, 6)]
 
-    def tangents(self, x: FloatArray, v: FloatArray, t: float, load_factor: float = 1.0):
-        """g (n_dof,) and K = dg/dx, C = dg/dv on the free DOFs (cable tangents, no load stiffness)."""
-        g, K_blocks, C_blocks = self.tangent_blocks(x, v, t, load_factor)
-        pattern = self._pattern
-        return g.ravel(), pattern.matrix([K_blocks]), pattern.matrix([C_blocks])
-
-    def tangent_blocks(self, x: FloatArray, v: FloatArray, t: float, load_factor: float = 1.0,
-                       ) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """g (N, 3) and the segment blocks (E, 6, 6) of K and C over the nodes ``[a, b]``."""
-        if len(self.hinges.nodes):  # run.prepare refuses implicit and static Kirchhoff runs
+    def forces(self, q: Configuration, v: FloatArray, t: float, load_factor: float,
+               need_matrices: bool) -> tuple[FloatArray, list[FloatArray], list[FloatArray]]:
+        """``g = f_int - f_ext`` (n_dof,) for flat velocities ``v`` (n_dof,) and, when
+        ``need_matrices``, the blocks (E, 6, 6) of ``K = dg/dx`` and ``C = dg/dv`` over the
+        segments (cable tangents, no load stiffness)."""
+        x, vv = q.x, v.reshape(-1, 3)
+        if not need_matrices:
+            f = self.segment_force(x, vv) + load_factor * self.external_force(t)
+            return -f.ravel(), [], []
+        if len(self.hinges.nodes):  # the model table refuses implicit and static Kirchhoff runs
             raise NotImplementedError("bending hinges have no tangent: Kirchhoff threads are "
                                       "integrated explicitly")
-        vv = v.reshape(-1, 3)
         a, b = self.segments[:, 0], self.segments[:, 1]
         n, g_b, K_bb, C_bb = cable_tangents(x[a], x[b], vv[a], vv[b], self.rest_length, self.EA,
                                             self.etaA, self.kink_strain, self.tension_only)
@@ -219,48 +204,70 @@ class LumpedModel:
         np.add.at(g, b, g_b)
         np.add.at(g, a, -g_b)
         g -= load_factor * self.external_force(t)
-        return g, element_blocks(K_bb), element_blocks(C_bb)
+        return g.ravel(), [element_blocks(K_bb)], [element_blocks(C_bb)]
 
-    def retract(self, x: FloatArray, dq: FloatArray) -> FloatArray:
-        return x + dq.reshape(-1, 3)
+    def retract(self, q: Configuration, dq: FloatArray) -> Configuration:
+        return Configuration(q.x + dq.reshape(-1, 3), q.quat)
 
-    def tangent_operator(self, dq: FloatArray) -> sp.csr_matrix:
-        return sp.identity(int(self.free.sum()), format="csr")
-
-    def active_set(self, x: FloatArray, v: FloatArray) -> int:
-        return hash(np.packbits(self.tension(x, v.reshape(-1, 3)) > 0.0).tobytes())
+    def active_set(self, q: Configuration, v: FloatArray) -> bytes:
+        return np.packbits(self.tension(q.x, v.reshape(-1, 3)) > 0.0).tobytes()
 
     def rotation_dofs(self) -> NDArray[np.int64]:
         return np.zeros(0, np.int64)
 
-    @property
-    def _pattern(self) -> SparsityPattern:
-        cached = self.__dict__.get("_pattern_cache")
-        if cached is None:
-            dofs = (3 * self.segments[:, :, None] + np.arange(3)).reshape(-1, 6)
-            cached = SparsityPattern([dofs], self.n_dof, self.free)
-            object.__setattr__(self, "_pattern_cache", cached)
-        return cached
+    def explicit_terms(self) -> tuple[kx.Nodes, kx.Rotations, kx.Loads, Segments, Hinges,
+                                      RodElements]:
+        """The model's arrays for the compiled explicit loop."""
+        f = np.ascontiguousarray
+        n = len(self.load_nodes)
+        return (kx.Nodes(f(np.repeat(self.inv_mass[:, None], 3, axis=1)), f(self.gravity_force)),
+                kx.Rotations(np.zeros((0, 3)), np.zeros((0, 3))),
+                kx.Loads(f(self.load_nodes), np.zeros(n, np.int64), f(self.load_force),
+                         np.zeros((n, 3)), f(self.load_ramp)),
+                Segments(f(self.segments), f(self.rest_length), f(self.EA), f(self.etaA),
+                            float(self.kink_strain), bool(self.tension_only)),
+                Hinges(*(f(a) for a in self.hinges)), no_rod_elements())
 
-    @property
+    # --- output --------------------------------------------------------------------------
+
+    def frame_arrays(self, q: Configuration, v: FloatArray) -> dict[str, FloatArray]:
+        """What a saved frame holds: positions, velocities (N, 3) and segment ``tension`` (E,)."""
+        vv = np.asarray(v).reshape(-1, 3)
+        return {"positions": np.array(q.x), "velocities": np.array(vv),
+                "tension": self.tension(q.x, vv)}
+
+    def energy(self, q: Configuration, v: FloatArray, t: float) -> dict[str, float]:
+        """Kinetic, elastic and external-load potential energy [J], (S8); elastic includes the
+        hinges' bending energy (K2)."""
+        x, vv = q.x, np.asarray(v).reshape(-1, 3)
+        _, _, e, _ = self.segment_kinematics(x, vv)
+        elastic = axial_energy(e, self.EA, self.rest_length, self.kink_strain, self.tension_only)
+        if len(self.hinges.nodes):
+            h = self.hinges
+            elastic = np.append(elastic, hinge_energy(x, h.nodes, h.stiffness, h.rest))
+        kinetic = 0.5 * np.sum(self.mass * np.einsum("ij,ij->i", vv, vv))
+        potential = -float(np.sum(self.external_force(t) * x))
+        return {"kinetic": float(kinetic), "elastic": float(elastic.sum()), "potential": potential}
+
+    def check_frame(self, t: float, frame: dict[str, FloatArray]) -> None:
+        """Nothing to check beyond the run's own checks."""
+
+    @cached_property
     def _incidence(self) -> sp.csr_matrix:
         """Signed node-segment incidence (N, E): +1 at the segment's start node, -1 at its end, so
         that ``incidence @ (N t)`` is the force the segments exert on the nodes."""
-        cached = self.__dict__.get("_incidence_cache")
-        if cached is None:
-            n_seg = len(self.segments)
-            rows = self.segments.T.ravel()
-            cols = np.tile(np.arange(n_seg), 2)
-            vals = np.concatenate([np.ones(n_seg), -np.ones(n_seg)])
-            cached = sp.csr_matrix((vals, (rows, cols)), shape=(self.structure.n_nodes, n_seg))
-            object.__setattr__(self, "_incidence_cache", cached)
-        return cached
+        n_seg = len(self.segments)
+        rows = self.segments.T.ravel()
+        cols = np.tile(np.arange(n_seg), 2)
+        vals = np.concatenate([np.ones(n_seg), -np.ones(n_seg)])
+        return sp.csr_matrix((vals, (rows, cols)), shape=(self.structure.n_nodes, n_seg))
 
 
-def build_lumped(scene: Scene, structure: Structure, hinges: Hinges | None = None) -> LumpedModel:
+def build_lumped(scene: Scene, structure: Structure,
+                 hinges: Hinges | None = None) -> tuple[LumpedModel, Configuration, FloatArray]:
     """The lumped model of a scene (masses (S1), springs (S3), supports, gravity, loads), with the
-    bending ``hinges`` of Kirchhoff threads (:func:`rodnet.formulations.kirchhoff.hinges_of`)
-    when given."""
+    bending ``hinges`` of Kirchhoff threads (:func:`rodnet.models.kirchhoff.hinges_of`) when
+    given; its initial configuration and velocities (n_dof,)."""
     materials = scene.materials
     rho_a = np.array([m.rhoA for m in materials])[structure.material]
     seg_mass = rho_a * structure.rest_length
@@ -288,7 +295,7 @@ def build_lumped(scene: Scene, structure: Structure, hinges: Hinges | None = Non
         load_nodes=load_nodes,
         load_force=np.array([l.force for l in scene.loads], float).reshape(-1, 3),
         load_ramp=np.array([l.ramp for l in scene.loads], float),
-        hinges=Hinges.none() if hinges is None else hinges)
+        hinges=no_hinges() if hinges is None else hinges)
     for array in (*(getattr(model, name) for name in ("mass", "inv_mass", "EA", "etaA",
                                                       "gravity_force", "load_nodes", "load_force",
                                                       "load_ramp")), *model.hinges):
@@ -296,8 +303,27 @@ def build_lumped(scene: Scene, structure: Structure, hinges: Hinges | None = Non
     if not math.isfinite(model.stable_step()):
         raise SceneError("supports", [s.node for s in scene.supports],
                          "every node is supported: nothing can move")
-    if scene.bodies:
-        from rodnet.contact.lumped import with_bodies
+    v0 = structure.velocities.copy()
+    v0[model.inv_mass == 0.0] = 0.0
+    return model, Configuration(structure.positions.copy()), v0.ravel()
 
-        return with_bodies(model, scene)
-    return model
+
+def lumped_explicit_plan(model: LumpedModel, v0: FloatArray, dt: float, adaptive: bool,
+                         safety: float, scale_rotary_inertia: bool = False,
+                         ) -> tuple[LumpedModel, FloatArray, kx.StepControl]:
+    """The model the explicit loop runs (this one), its start velocities and the step control:
+    fixed steps of ``safety`` times the stability limit (S10), or of ``dt`` (the model has no
+    rotary inertia to scale).
+
+    Raises
+    ------
+    SceneError
+        A fixed ``dt`` above the stability limit.
+    """
+    limit = model.stable_step()
+    if not adaptive and dt > limit:
+        raise SceneError("simulation.dt", dt, f"exceeds the explicit stability limit "
+                         f"{limit:.3g} s of this scene; use dt <= {limit:.3g} "
+                         f"(about half of it for accurate snap loads) or adaptive = true")
+    step = safety * limit if adaptive else dt
+    return model, v0, kx.StepControl(step, step, 0.0, False, np.zeros(1), np.ones(1), limit)

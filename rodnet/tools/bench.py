@@ -49,7 +49,7 @@ CHILD = r"""
 import json, resource, sys, time
 start = time.perf_counter()
 import numpy as np
-from rodnet.cli import demo_scene_text
+from rodnet.data import reference_scene_text as demo_scene_text
 from rodnet.run import run
 from rodnet.scene import scene_from_toml
 overrides = json.loads(sys.argv[1]) + ["output.vtk=false", "output.picture=false", "output.plot=false"]

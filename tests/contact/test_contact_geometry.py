@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from rodnet.contact.geometry import Box, Cylinder, Sphere, query_world, shape_from_scene
+from rodnet.contact.geometry import Box, Cylinder, Sphere, query_world
+from rodnet.contact.shapes import shape_from_scene
 from rodnet.contact.mesh import TriangleMesh, load_mesh
 from rodnet.errors import SceneError
 

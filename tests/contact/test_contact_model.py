@@ -10,11 +10,14 @@ import numpy as np
 import pytest
 import trimesh
 
+from rodnet.assembly import SparsityPattern
 from rodnet.contact.forces import contact_state, nodal_force, nodal_tangents
 from rodnet.integrate.explicit import integrate_explicit
-from rodnet.kernels.contact_compiled import accumulate_contact
+from rodnet.kernels.contact_compiled import accumulate_contact, contact_scratch
+from rodnet.models.system import ThreadSystem
 from rodnet.run import prepare
 from rodnet.scene import scene_from_toml
+from rodnet.state import Configuration
 from tests.contact.scenes import cord, run_ok
 
 RNG = np.random.default_rng(5)
@@ -82,7 +85,7 @@ points_per_segment = 3
 def near_surfaces(model, gap: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
     """Node positions (N, 3) on a random walk near the four bodies' surfaces, with the signed
     distance of every node within ``gap``, and random velocities (N, 3)."""
-    contact = model.contact
+    contact = model.contact.bodies
     n = model.structure.n_nodes
     x = np.empty((n, 3))
     for i in range(n):
@@ -100,29 +103,39 @@ def near_surfaces(model, gap: tuple[float, float]) -> tuple[np.ndarray, np.ndarr
 @pytest.fixture(scope="module")
 def model(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("bodies")
-    return prepare(scene_from_toml(four_bodies_scene(tmp))).model
+    return prepare(scene_from_toml(four_bodies_scene(tmp))).system
 
 
 def compiled(model, x, v, dt=0.0, with_moment=False):
     contact = model.contact
     force = np.zeros_like(x)
-    body_force, body_moment = np.zeros((contact.n_bodies, 3)), np.zeros((contact.n_bodies, 3))
-    taken = np.zeros(len(x), dtype=np.bool_)
-    active, clearance = np.ones(contact.n_bodies, np.bool_), np.zeros(contact.n_bodies)
-    out = accumulate_contact(x, v, force, dt, *contact.kernel_arguments(model.inv_mass),
-                             *contact.kernel_motion(), active, taken, body_force, body_moment,
-                             clearance)
-    assert not taken.any()
+    scratch = contact_scratch(len(x), contact.n_bodies)
+    scratch.active[:] = True
+    scratch.clearance[:] = 0.0
+    m = contact.start_motion()
+    out = accumulate_contact(x, v, force, dt, contact.kernel_data, m.position, m.rotation,
+                             m.velocity, m.omega, scratch)
+    assert not scratch.taken.any()
     if with_moment:
-        return force, body_force, body_moment, out
-    return force, body_force, out
+        return force, scratch.body_force, scratch.body_moment, out
+    return force, scratch.body_force, out
+
+
+def numpy_contact(model):
+    """The bodies of a system and their start pose, for the NumPy functions."""
+    return model.contact.bodies, model.contact.start_motion()
+
+
+def contact_matrix(model, blocks):
+    """The contact tangent blocks (S, 6, 6) assembled on the free DOFs."""
+    return SparsityPattern([model.contact.dofs], model.n_dof, model.free).matrix([blocks])
 
 
 def test_compiled_contact_matches_the_numpy_oracle(model) -> None:
     x, v = near_surfaces(model, (-0.008, 0.012))
     force, body_force, (power, total, count, allowed) = compiled(model, x, v)
-    expected = nodal_force(model.contact, x, v)
-    state = contact_state(model.contact, x, v)
+    expected = nodal_force(*numpy_contact(model), x, v)
+    state = contact_state(*numpy_contact(model), x, v)
     assert 100 < count == state.count
     np.testing.assert_allclose(force, expected, rtol=1e-10, atol=1e-10 * np.abs(expected).max())
     np.testing.assert_allclose(body_force, state.body_force, rtol=1e-10, atol=1e-9)
@@ -135,19 +148,20 @@ def test_compiled_contact_matches_the_numpy_oracle(model) -> None:
 
 
 def test_contact_tangents_match_central_differences(tmp_path: Path) -> None:
-    m = prepare(scene_from_toml(four_bodies_scene(tmp_path, nodes=80))).model
+    m = prepare(scene_from_toml(four_bodies_scene(tmp_path, nodes=80))).system
     x, v = near_surfaces(m, (0.0, 0.006))   # centrelines outside, within r + s of the surface
     vf = v.ravel()
-    g, K, C = m.tangents(x, vf, 0.0)
-    assert nodal_tangents(m.contact, x, v).force.any()
+    g, K, C = m.tangents(Configuration(x), vf, 0.0)
+    assert nodal_tangents(*numpy_contact(m), x, v).force.any()
     h = 1e-7
     rows = RNG.choice(m.n_dof, 40, replace=False)
     for j in rows:
         e = np.zeros(m.n_dof)
         e[j] = h
-        dx = (m.generalized_force(x + e.reshape(-1, 3), vf, 0.0)
-              - m.generalized_force(x - e.reshape(-1, 3), vf, 0.0)) / (2 * h)
-        dv = (m.generalized_force(x, vf + e, 0.0) - m.generalized_force(x, vf - e, 0.0)) / (2 * h)
+        dx = (m.generalized_force(Configuration(x + e.reshape(-1, 3)), vf, 0.0)
+              - m.generalized_force(Configuration(x - e.reshape(-1, 3)), vf, 0.0)) / (2 * h)
+        dv = (m.generalized_force(Configuration(x), vf + e, 0.0)
+              - m.generalized_force(Configuration(x), vf - e, 0.0)) / (2 * h)
         scale = np.abs(K.toarray()).max()
         np.testing.assert_allclose(K[:, j].toarray().ravel(), dx, atol=2e-5 * scale)
         np.testing.assert_allclose(C[:, j].toarray().ravel(), dv,
@@ -191,15 +205,15 @@ def test_stable_step_bounds_the_contact_frequency_of_a_chain_lying_on_a_box() ->
     chain; the estimate must be below its limit 2/omega_max and not far below."""
     scene = scene_from_toml(CHAIN.format(duration=0.1, dt=1e-5, k=1e4))
     p = prepare(scene)
-    m = p.model
-    x = p.q0.copy()
+    m = p.system
+    x = p.q0.x.copy()
     x[:, 2] = 0.5 + 0.001 - 1e-4   # all points pressed 0.1 mm
-    t = nodal_tangents(m.contact, x, np.zeros_like(x))
-    K = m._pattern.matrix([-t.d_position]).toarray()
+    t = nodal_tangents(*numpy_contact(m), x, np.zeros_like(x))
+    K = contact_matrix(m, -t.d_position).toarray()
     free = m.free
     w2 = np.linalg.eigvals(K / m.dof_mass[free][:, None]).real.max()
     exact = 2.0 / np.sqrt(w2)
-    estimate = m.contact.stable_step(m.inv_mass)
+    estimate = m.contact.bodies.stable_step(m.contact.inv_mass)
     assert 0.6 * exact <= estimate <= exact
 
 
@@ -208,14 +222,14 @@ def test_explicit_friction_cap_leaves_sliding_alone_and_limits_creep() -> None:
     change while sliding, a smaller force at creep speeds."""
     p = prepare(scene_from_toml(CHAIN.format(duration=0.1, dt=1e-5, k=1e4).replace(
         "friction = 0.0", "friction = 0.5")))
-    x = p.q0.copy()
+    x = p.q0.x.copy()
     x[:, 2] = 0.5 + 0.001 - 1e-4
     sliding = np.tile([1.0, 0.0, 0.0], (len(x), 1))
     dt = 1e-5
-    np.testing.assert_allclose(compiled(p.model, x, sliding, dt)[0], compiled(p.model, x, sliding)[0],
-                               rtol=1e-12)
+    np.testing.assert_allclose(compiled(p.system, x, sliding, dt)[0],
+                               compiled(p.system, x, sliding)[0], rtol=1e-12)
     creep = 1e-7 * sliding
-    capped, plain = compiled(p.model, x, creep, dt)[0], compiled(p.model, x, creep)[0]
+    capped, plain = compiled(p.system, x, creep, dt)[0], compiled(p.system, x, creep)[0]
     np.testing.assert_allclose(capped[:, 2], plain[:, 2], rtol=1e-12)   # the normal force stays
     assert (np.abs(capped[:, 0]) < 0.5 * np.abs(plain[:, 0])).all()
     # capped: the friction impulse of one step cannot reverse the node's slip
@@ -229,27 +243,30 @@ def test_chain_pressed_on_a_box_is_stable_below_the_limit_and_not_above_the_exac
     scene = scene_from_toml(CHAIN.format(duration=0.1, dt=1e-5, k=1e4).replace(
         "gravity = [0.0, 0.0, -9.81]", "gravity = [0.0, 0.0, -200.0]"))
     p = prepare(scene)
-    m = p.model
-    depth = m.mass[1] * 200.0 / (2 * 1e4)    # an interior node on its own point and two halves
-    x0 = p.q0.copy()
+    m = p.system
+    depth = p.model.mass[1] * 200.0 / (2 * 1e4)    # an interior node on its own point and two halves
+    x0 = p.q0.x.copy()
     x0[:, 2] = 0.5 + 0.001 - depth
     # the exact equilibrium: one Newton step, the pressed contact being linear in the depth
-    g, K, _ = m.tangents(x0, np.zeros(m.n_dof), 0.0)
+    g, K, _ = m.tangents(Configuration(x0), np.zeros(m.n_dof), 0.0)
     z = np.arange(2, m.n_dof, 3)
     x0[:, 2] -= np.linalg.solve(K.toarray()[np.ix_(z, z)], g[z])
-    assert np.abs(m.generalized_force(x0, np.zeros(m.n_dof), 0.0)[z]).max() < 1e-10
+    assert np.abs(m.generalized_force(Configuration(x0), np.zeros(m.n_dof), 0.0)[z]).max() < 1e-10
     x0[0, 2] -= 0.01 * depth                  # a small push that keeps every point pressed
-    t = nodal_tangents(m.contact, x0, np.zeros_like(x0))
-    K = m._pattern.matrix([-t.d_position]).toarray()
+    t = nodal_tangents(*numpy_contact(m), x0, np.zeros_like(x0))
+    K = contact_matrix(m, -t.d_position).toarray()
     exact = 2.0 / np.sqrt(np.linalg.eigvals(K / m.dof_mass[m.free][:, None]).real.max())
 
     def swing(dt: float) -> float:
         times = np.arange(0, 2001, 100) * dt      # whole steps between frames: the step is dt
         z = []
-        integrate_explicit(m, x0, np.zeros_like(x0), times, dt, lambda t, x, v: z.append(x[:, 2].copy()))
+        control = m.control._replace(dt=dt, near_dt=dt, min_dt=1e-6 * dt)
+        system = ThreadSystem(m.model, m.contact, control)
+        state = system.initial_state(Configuration(x0.copy()), np.zeros(m.n_dof))
+        integrate_explicit(system, state, times, lambda t, s: z.append(s.q.x[:, 2].copy()))
         return float(np.abs(np.array(z) - x0[:, 2]).max())
 
-    assert swing(0.95 * m.stable_step()) < 0.1 * depth
+    assert swing(0.95 * m.contact.combined_step(p.model.stable_step())) < 0.1 * depth
     assert swing(1.1 * exact) > 100 * depth
 
 
@@ -295,5 +312,5 @@ def test_travel_limit_stops_a_fast_rod_at_a_thin_plate(integrator: str) -> None:
     z = r.arrays["positions"][:, :, 2]
     assert z.max() < 0.006 - 0.001                        # never reached the near face
     assert (r.arrays["velocities"][-1, :, 2] < 0).all()   # bounced back
-    limit = prepare(scene_from_toml(text)).model.contact.travel_limit[0]
+    limit = prepare(scene_from_toml(text)).system.contact.bodies.travel_limit[0]
     assert r.summary["integrator"]["dt_min"] <= limit / 10.0 * 1.0001

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rodnet.contact.lumped import LumpedContactModel
+from rodnet.models.lumped import LumpedModel
 from rodnet.run import RunResult, prepare
 from rodnet.scene import scene_from_toml
 from tests.contact.scenes import cord, run_ok
@@ -77,7 +77,7 @@ def centreline_points(r: RunResult, samples: int = 20) -> np.ndarray:
 def smallest_distance(r: RunResult, scene_text: str, samples: int = 20) -> float:
     """The smallest signed distance [m] of any of ``samples`` points per segment to any body,
     over every frame (positive: every centreline point outside every body)."""
-    contact = prepare(scene_from_toml(scene_text)).model.contact
+    contact = prepare(scene_from_toml(scene_text)).system.contact.bodies
     points = centreline_points(r, samples).reshape(-1, 3)
     smallest = np.inf
     for b, shape in enumerate(contact.shapes):
@@ -108,8 +108,8 @@ def test_explicit_and_implicit_bounces_agree() -> None:
 
 def test_cable_threads_take_the_same_contact() -> None:
     cable, lumped = drop("backward-euler", model="cosserat"), drop("backward-euler")
-    assert isinstance(prepare(scene_from_toml(drop_text("backward-euler", "cosserat"))).model,
-                      LumpedContactModel)
+    cable_system = prepare(scene_from_toml(drop_text("backward-euler", "cosserat"))).system
+    assert isinstance(cable_system.model, LumpedModel) and cable_system.contact is not None
     np.testing.assert_allclose(cable.arrays["positions"], lumped.arrays["positions"], atol=1e-12)
 
 
@@ -189,7 +189,7 @@ vtk = false
 def test_net_at_50_m_s_does_not_pass_through_a_2_mm_plate() -> None:
     text = net_at_plate()
     r = run_ok(text)
-    contact = prepare(scene_from_toml(text)).model.contact
+    contact = prepare(scene_from_toml(text)).system.contact.bodies
     local = (centreline_points(r) - contact.position[0]) @ contact.rotation[0]      # (F, S, 21, 3)
     over_plate = (np.abs(local[..., 0]) < 0.5) & (np.abs(local[..., 1]) < 0.5)
     # the net comes from the plate's local -z side; on every frame no point over the plate may
@@ -289,13 +289,15 @@ def test_explicit_step_counts_contact_springs_only_near_a_body() -> None:
     text = drop_text()
     p = prepare(scene_from_toml(text))
     safety = 0.5
-    assert p.dt == pytest.approx(safety * p.model.far_stable_step(), rel=1e-12)
-    assert p.near_dt == pytest.approx(safety * p.model.stable_step(), rel=1e-12)
-    assert p.near_dt < 0.5 * p.dt        # the 1e5 N/m penalty on a 0.1 kg mass dominates
+    near_dt = p.system.control.near_dt
+    assert p.dt == pytest.approx(safety * p.model.stable_step(), rel=1e-12)
+    assert near_dt == pytest.approx(safety * p.system.contact.combined_step(p.model.stable_step()),
+                                    rel=1e-12)
+    assert near_dt < 0.5 * p.dt        # the 1e5 N/m penalty on a 0.1 kg mass dominates
     near = run_ok(text)
     far = run_ok(text.replace("fixed = true", "fixed = true\nposition = [0.0, 0.0, -20.0]"))
     alone = run_ok(text[:text.index("[[bodies]]")] + text[text.index("[output]"):])
-    first = int(np.ceil(0.005 / p.near_dt))
+    first = int(np.ceil(0.005 / near_dt))
     assert alone.summary["steps"] <= far.summary["steps"] <= alone.summary["steps"] + first
     assert near.summary["steps"] > 1.5 * alone.summary["steps"]
     np.testing.assert_allclose(far.arrays["positions"][-1], alone.arrays["positions"][-1],

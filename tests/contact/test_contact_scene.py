@@ -112,8 +112,8 @@ def test_mesh_file_problems_are_caught_before_the_run(tmp_path: Path) -> None:
     assert info.value.key == "bodies[0].file"
     # a good one, found relative to the scene file
     trimesh.creation.icosphere(radius=0.5).export(tmp_path / "ball.stl")
-    model = prepare(load_scene(mesh_scene(tmp_path, "ball.stl"))).model
-    assert model.contact.kinds == ("mesh",)
+    model = prepare(load_scene(mesh_scene(tmp_path, "ball.stl"))).system
+    assert model.contact.bodies.kinds == ("mesh",)
 
 
 def test_body_overlapping_the_net_at_the_start_is_refused_naming_body_and_node() -> None:
@@ -157,7 +157,7 @@ fixed = true
 def test_rods_touch_bodies_and_rk45_does_not() -> None:
     rods = prepare(scene_from_toml(with_body(), ["model.type=cosserat",
                                                  'simulation.integrator="generalized-alpha"']))
-    assert rods.model.contact.names == ("target",) and rods.model.n_rot > 0
+    assert rods.system.contact.bodies.names == ("target",) and rods.model.n_rot > 0
     with pytest.raises(SceneError, match="free bodies move with") as info:
         prepare(scene_from_toml(with_body(), ["model.type=cosserat", "bodies[0].fixed=false",
                                               "bodies[0].mass=10.0",
@@ -168,7 +168,7 @@ def test_rods_touch_bodies_and_rk45_does_not() -> None:
     assert info.value.key == "simulation.integrator"
     cables = prepare(scene_from_toml(with_body(), ["model.type=cosserat", "model.bending=false",
                                                    "model.torsion=false"]))
-    assert cables.model.contact.names == ("target",)
+    assert cables.system.contact.bodies.names == ("target",)
 
 
 BAD_INERTIA = [  # (inertia, a word of the message)
@@ -201,16 +201,16 @@ def test_free_bodies_need_the_explicit_integrator_and_a_dynamic_run() -> None:
         prepare(scene_from_toml(with_body(), [*free, 'simulation.type="static"']))
     assert info.value.key == "simulation.type"
     # explicit: accepted, with the inertia of the homogeneous box, 10 kg * (1 + 1) / 12
-    model = prepare(scene_from_toml(with_body(), free)).model
-    np.testing.assert_allclose(model.contact.inertia[0], 10.0 / 6.0 * np.eye(3), rtol=1e-12)
-    assert model.contact.free.tolist() == [True]
+    model = prepare(scene_from_toml(with_body(), free)).system
+    np.testing.assert_allclose(model.contact.bodies.inertia[0], 10.0 / 6.0 * np.eye(3), rtol=1e-12)
+    assert model.contact.bodies.free.tolist() == [True]
 
 
 def test_given_inertia_is_used_in_body_axes() -> None:
     model = prepare(scene_from_toml(with_body(), [
         "bodies[0].fixed=false", "bodies[0].mass=10.0",
-        "bodies[0].inertia=[2.0, 3.0, 4.0, 0.5, -0.25, 0.125]"])).model
-    np.testing.assert_array_equal(model.contact.inertia[0], [[2.0, 0.5, -0.25], [0.5, 3.0, 0.125],
+        "bodies[0].inertia=[2.0, 3.0, 4.0, 0.5, -0.25, 0.125]"])).system
+    np.testing.assert_array_equal(model.contact.bodies.inertia[0], [[2.0, 0.5, -0.25], [0.5, 3.0, 0.125],
                                                              [-0.25, 0.125, 4.0]])
 
 
@@ -228,11 +228,11 @@ def test_cli_refuses_a_free_body_with_an_implicit_integrator_and_writes_nothing(
 
 def test_contact_defaults_and_orientation() -> None:
     scene = scene_from_toml(with_body(), ["bodies[0].orientation_deg=[90.0, 0.0, 90.0]"])
-    model = prepare(scene).model
-    law = model.contact.law
+    model = prepare(scene).system
+    law = model.contact.bodies.law
     assert (law.stiffness, law.damping, law.friction) == (1.0e5, 0.0, 0.3)
     # x then y then z about the fixed axes: x -> y ... R = Rz(90) Rx(90)
     R, q = euler_xyz_matrix((90.0, 0.0, 90.0))
     np.testing.assert_allclose(R, [[0, 0, 1], [1, 0, 0], [0, 1, 0]], atol=1e-15)
-    np.testing.assert_allclose(model.contact.rotation[0], R)
+    np.testing.assert_allclose(model.contact.bodies.rotation[0], R)
     np.testing.assert_allclose(np.linalg.norm(q), 1.0)

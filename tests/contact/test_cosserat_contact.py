@@ -9,12 +9,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rodnet.contact.cosserat import CosseratContactModel
 from rodnet.contact.forces import nodal_tangents
 from rodnet.errors import SceneError
-from rodnet.formulations.cosserat import RodConfiguration
 from rodnet.run import prepare
+from rodnet.models.cosserat.model import CosseratModel
 from rodnet.scene import scene_from_toml
+from rodnet.state import Configuration as RodConfiguration
 from tests.contact.scenes import cord, run_ok
 from tests.contact.test_contact_runs import centreline_points, net_at_plate, smallest_distance
 
@@ -68,22 +68,22 @@ def rod_text(integrator: str = "backward-euler", points: str = STANDING, duratio
 
 def test_rod_model_with_bodies_is_the_contact_model() -> None:
     p = prepare(scene_from_toml(rod_text()))
-    assert isinstance(p.model, CosseratContactModel)
-    assert p.model.n_dof == 6 * 5          # positions and rotations: the rod model, not a cable
+    assert isinstance(p.model, CosseratModel) and p.system.contact is not None
+    assert p.system.n_dof == 6 * 5          # positions and rotations: the rod model, not a cable
 
 
 def test_contact_tangent_of_the_rod_model_matches_central_differences() -> None:
     """Nodes pushed into the box with random velocities: K and C of the whole model (elements
     plus contact) against central differences of g on positions and rotations."""
     p = prepare(scene_from_toml(rod_text(points="[[-0.05, 0.0, 0.5012], [0.05, 0.0, 0.5012]]")))
-    m = p.model
+    m = p.system
     x = p.q0.x.copy()
     x[:, 2] = 0.5 + 1e-3 - RNG.uniform(0.0, 2e-4, len(x))
     x[:, :2] += RNG.normal(0.0, 1e-3, (len(x), 2))
     q = RodConfiguration(x, p.q0.quat)
     v = RNG.normal(0.0, 0.05, m.n_dof)
-    assert np.count_nonzero(nodal_tangents(m.contact, x, v[:3 * m.n_nodes].reshape(-1, 3))
-                            .d_position) > 0
+    assert np.count_nonzero(nodal_tangents(m.contact.bodies, m.contact.start_motion(), x,
+                                           v[:3 * m.n_nodes].reshape(-1, 3)).d_position) > 0
     g, K, C = m.tangents(q, v, 0.0)
     K, C = K.toarray(), C.toarray()
     h = 1e-8
@@ -124,7 +124,7 @@ def rod_net_at_plate(integrator: str = "backward-euler") -> str:
 def test_rod_net_at_50_m_s_does_not_pass_through_a_2_mm_plate(integrator: str) -> None:
     text = rod_net_at_plate(integrator)
     r = run_ok(text)
-    contact = prepare(scene_from_toml(text)).model.contact
+    contact = prepare(scene_from_toml(text)).system.contact.bodies
     local = (centreline_points(r) - contact.position[0]) @ contact.rotation[0]      # (F, S, 21, 3)
     over_plate = (np.abs(local[..., 0]) < 0.5) & (np.abs(local[..., 1]) < 0.5)
     assert (local[0, ..., 2] < -0.1).all()

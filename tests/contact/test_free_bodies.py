@@ -8,7 +8,7 @@ import meshio
 import numpy as np
 import pytest
 
-from rodnet.integrate.explicit_rods import integrate_explicit_rods
+from rodnet.integrate.explicit import integrate_explicit
 from rodnet.kernels import so3
 from rodnet.run import RunResult, prepare
 from rodnet.scene import scene_from_toml
@@ -59,8 +59,8 @@ vtk = false
 def momenta(r: RunResult, text: str) -> tuple[np.ndarray, np.ndarray]:
     """Total linear momentum (F, 3) [kg m/s] and angular momentum about the world origin (F, 3)
     [kg m^2/s] of nodes plus bodies, from the result arrays."""
-    model = prepare(scene_from_toml(text)).model
-    m, c = model.mass, model.contact
+    p = prepare(scene_from_toml(text))
+    m, c = p.mass, p.system.contact.bodies
     x, v = r.arrays["positions"], r.arrays["velocities"]
     p, u = r.arrays["body_positions"], r.arrays["body_velocities"]
     w, q = r.arrays["body_angular_velocities"], r.arrays["body_rotations"]
@@ -88,7 +88,7 @@ def test_net_hitting_a_tumbling_box_conserves_linear_and_angular_momentum() -> N
     spin = np.abs(np.diff(r.arrays["body_moment"][:, 0], axis=0)).max()
     assert spin > 0.0
     # and the saved contact force balances the nodes' momentum change only with the body's
-    nodes = np.einsum("n,fni->fi", prepare(scene_from_toml(NET_AND_BOX)).model.mass,
+    nodes = np.einsum("n,fni->fi", prepare(scene_from_toml(NET_AND_BOX)).mass,
                       r.arrays["velocities"])
     assert np.abs(nodes - nodes[0]).max() > 0.1 * np.linalg.norm(linear[0])
 
@@ -100,17 +100,17 @@ def test_rod_net_hitting_a_tumbling_box_conserves_linear_and_angular_momentum() 
     """Cosserat threads with bending and torsion (explicit, scaled rotary inertia): the nodes'
     moments of momentum plus the rotations' spins ``R J W`` plus the box's."""
     p = prepare(scene_from_toml(ROD_NET_AND_BOX))
-    model, c = p.model, p.model.contact
+    model, c = p.model, p.system.contact.bodies
     n = model.n_nodes
     frames = []
 
-    def keep(t: float, q, v: np.ndarray) -> None:
-        m = c.motion
+    def keep(t: float, state) -> None:
+        q, v, m = state.q, state.v, state.bodies
         frames.append((q.x.copy(), q.quat.copy(), v[:3 * n].reshape(-1, 3).copy(),
                        v[3 * n:].reshape(-1, 3).copy(), m.position.copy(), m.velocity.copy(),
                        m.momentum.copy()))
 
-    integrate_explicit_rods(model, p.q0, p.v0, p.times, p.rod_plan, keep, near_dt=p.near_dt)
+    integrate_explicit(p.system, p.state, p.times, keep)
     x, quat, u, W, P, U, L = (np.array(a) for a in zip(*frames))
     linear = np.einsum("n,fni->fi", model.node_mass, u) + np.einsum("b,fbi->fi", c.mass, U)
     R = so3.quat_to_matrix(quat.reshape(-1, 4)).reshape(*quat.shape[:2], 3, 3)
@@ -120,7 +120,7 @@ def test_rod_net_hitting_a_tumbling_box_conserves_linear_and_angular_momentum() 
     assert np.abs(linear - linear[0]).max() <= 1e-6 * np.linalg.norm(linear[0])
     assert np.abs(angular - angular[0]).max() <= 1e-6 * np.linalg.norm(angular[0])
     assert U[-1, 0, 2] - U[0, 0, 2] > 0.3          # the net did slow the box down
-    assert p.rod_plan.scale > 1.0 and p.near_dt < p.rod_plan.dt
+    assert p.built.rotary_inertia_scale > 1.0 and p.system.control.near_dt < p.dt
 
 
 TUMBLER = """
@@ -158,7 +158,7 @@ def tumbler(shape: str = "box", size: str = "[0.6, 0.4, 0.2]",
 def body_frame_motion(r: RunResult, text: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """World angular momentum about the centre of mass (F, 3), rotational kinetic energy (F,)
     and rotations (F, 3, 3) of body 0."""
-    J = prepare(scene_from_toml(text)).model.contact.inertia[0]
+    J = prepare(scene_from_toml(text)).system.contact.bodies.inertia[0]
     q, w = r.arrays["body_rotations"][:, 0], r.arrays["body_angular_velocities"][:, 0]
     R = np.array([so3.quat_to_matrix(qi) for qi in q])
     L = np.einsum("fij,jk,flk,fl->fi", R, J, R, w)
@@ -184,7 +184,7 @@ def test_symmetric_body_precesses_about_its_angular_momentum_at_L_over_I_transve
     text = tumbler("cylinder", "[0.4, 0.4, 1.0]", "[90.0, -60.0, 600.0]")
     r = run_ok(text)
     L, _, R = body_frame_motion(r, text)
-    J = prepare(scene_from_toml(text)).model.contact.inertia[0]
+    J = prepare(scene_from_toml(text)).system.contact.bodies.inertia[0]
     transverse = J[0, 0]
     axis = L[0] / np.linalg.norm(L[0])
     t = r.arrays["time"]
@@ -209,8 +209,8 @@ def test_free_flight_is_written_to_result_and_vtk(tmp_path) -> None:
     np.testing.assert_allclose(p, p0 + np.outer(t, v0) + 0.5 * np.outer(t**2, g),
                                atol=0.5 * np.linalg.norm(g) * h * t[-1] + 1e-9)
     np.testing.assert_allclose(r.arrays["body_velocities"][:, 0], v0 + np.outer(t, g), atol=1e-9)
-    model = prepare(scene_from_toml(text)).model
-    R0, w = model.contact.rotation[0], model.contact.omega[0]
+    bodies = prepare(scene_from_toml(text)).system.contact.bodies
+    R0, w = bodies.rotation[0], bodies.omega[0]
     np.testing.assert_allclose(w, R0 @ np.radians([0.0, 0.0, 120.0]), atol=1e-12)
     np.testing.assert_allclose(r.arrays["body_angular_velocities"][:, 0],
                                np.broadcast_to(w, (len(t), 3)), atol=1e-12)

@@ -18,11 +18,11 @@ import pytest
 
 from rodnet.config import ModelSpec
 from rodnet.errors import SceneError
-from rodnet.formulations.cosserat import RodConfiguration
-from rodnet.formulations.cosserat_build import residual_bending_shear
+from rodnet.models.cosserat.geometry import residual_bending_shear
 from rodnet.kernels import so3
 from rodnet.run import prepare, run
 from rodnet.scene import scene_from_toml
+from rodnet.state import Configuration as RodConfiguration
 
 E, NU, RHO, D, L = 2.0e11, 0.3, 7800.0, 0.01, 1.0     # steel rod, L / d = 100
 AREA, INERTIA, G = np.pi * D**2 / 4, np.pi * D**4 / 64, E / (2 * (1 + NU))
@@ -67,7 +67,7 @@ def linear_tip(elements: int, correction: str, P: float = 1.0) -> tuple[float, f
     """Tip deflection [m] along the load and tip rotation [rad] of the clamped rod linearised
     at the stress-free state: ``K u = -g(q0)``."""
     p = prepare(rod(elements, correction, P))
-    model = p.model
+    model = p.system
     g, K, _ = model.tangents(p.q0, np.zeros(model.n_dof), 0.0, 1.0)
     u = np.zeros(model.n_dof)
     u[model.free] = np.linalg.solve(K.toarray(), -g[model.free])
@@ -137,7 +137,7 @@ def test_tension_limit_of_the_triad_on_its_chord(correction: str) -> None:
         stretch = 1.0 + ratio * ga_eff / (EA - ratio * ga_eff)   # N = EA (lambda - 1)
         N = EA * (stretch - 1.0)
         q = RodConfiguration(p.q0.x * np.array([stretch, 1.0, 1.0]), p.q0.quat)
-        _, K, _ = model.tangents(q, np.zeros(model.n_dof), 0.0, 0.0)
+        _, K, _ = p.system.tangents(q, np.zeros(model.n_dof), 0.0, 0.0)
         stiffness = mode @ (K.toarray() @ mode)
         assert stiffness == pytest.approx(L * stretch * (ga_eff * stretch - N), rel=1e-6)
         assert (stiffness > 0.0) == (ratio < 1.0)

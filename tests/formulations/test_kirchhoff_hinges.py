@@ -9,10 +9,10 @@ import pytest
 
 from rodnet.errors import SceneError
 from rodnet.kernels.hinge import hinge_energy, hinge_force
-from rodnet.kernels.lumped_explicit import accumulate_forces
 from rodnet.run import prepare
 from rodnet.scene import scene_from_toml
 from tests.conftest import small_net_toml
+from tests.systems import compiled_forces
 from tests.validation.test_kirchhoff import BEAM
 
 KIRCHHOFF = ["model.type=kirchhoff", "model.knots=pinned"]
@@ -81,10 +81,9 @@ def test_compiled_forces_equal_numpy_forces(axial: str) -> None:
     rng = np.random.default_rng(5)
     p = prepare(scene_from_toml(small_net_toml(n=3), [*KIRCHHOFF, f"model.axial={axial}",
                                                       "simulation.gravity=[0, 0, -9.81]"]))
-    x = p.structure.rest_positions + rng.normal(scale=0.05, size=p.q0.shape)
+    x = p.structure.rest_positions + rng.normal(scale=0.05, size=p.q0.x.shape)
     v = rng.normal(size=x.shape)
-    f = np.empty_like(x)
-    accumulate_forces(x, v, 0.3, f, *p.model.kernel_arguments())
+    f = compiled_forces(p.system, x, v, 0.3)
     np.testing.assert_allclose(f, p.model.force(x, v, 0.3), rtol=1e-10, atol=1e-9)
 
 

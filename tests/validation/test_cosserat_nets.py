@@ -23,10 +23,11 @@ import numpy as np
 import pytest
 
 from rodnet.cli import demo_scene_text
-from rodnet.integrate.implicit import Stepper, integrate_implicit
+from rodnet.integrate.implicit import integrate_implicit
 from rodnet.integrate.newton import NewtonOptions
 from rodnet.run import prepare, run
 from rodnet.scene import scene_from_toml
+from tests.systems import implicit_scheme
 
 BASE = ["output.vtk=false", "output.picture=false", "output.plot=false",
         "net.nodes_per_side=5", "simulation.dt=1e-4", "simulation.dt_max=1e-4",
@@ -57,7 +58,7 @@ def test_packed_start_is_stress_free_without_shear_rate(knots: str, elements: in
     uses = np.bincount(model.rot_nodes.ravel())
     assert (uses[spinning] == 1).all()                     # only thread ends of their own
     np.testing.assert_array_equal(v0[:n3], p.structure.velocities.ravel())
-    acceleration = -model.generalized_force(q0, v0, 0.0) / model.dof_mass
+    acceleration = -p.system.generalized_force(q0, v0, 0.0) / model.dof_mass
     assert np.abs(acceleration[n3:]).max() < 1e8           # rad/s^2; 2.1e10 without the spin
 
 
@@ -100,16 +101,16 @@ def integrate_net(scene, on_frame, budget: float | None = None):
 
     p = prepare(scene)
     sim = scene.simulation
-    stepper = Stepper(p.model, scene.integrator, sim.rho_inf,
-                      NewtonOptions(rtol=min(sim.rtol, 1e-6) * 1e-2))
+    stepper = implicit_scheme(p.system, scene.integrator, sim.rho_inf,
+                              NewtonOptions(rtol=min(sim.rtol, 1e-6) * 1e-2))
     start = time.perf_counter()
 
     def progress(t, h, stats) -> None:
         if budget is not None and time.perf_counter() - start > budget:
             raise _OutOfTime(f"t = {t:.4g} s after {budget} s, step {h:.2g} s")
 
-    return integrate_implicit(stepper, p.q0, p.v0, p.times, p.dt, sim.adaptive,
-                              lambda t, q, v: on_frame(t, p.model, q, v), progress,
+    return integrate_implicit(stepper, p.state, p.times, p.dt, sim.adaptive,
+                              lambda t, s: on_frame(t, p.model, s.q, s.v), progress,
                               dt_max=sim.dt_max)
 
 

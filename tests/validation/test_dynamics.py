@@ -18,11 +18,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rodnet.integrate.implicit import Stepper, integrate_implicit
+from rodnet.integrate.implicit import integrate_implicit
 from rodnet.integrate.newton import NewtonOptions
 from rodnet.kernels import so3
 from rodnet.run import RunResult, prepare, run
 from rodnet.scene import load_scene, scene_from_toml
+from tests.systems import implicit_scheme
 
 CASES = Path(__file__).parents[2] / "validation" / "cases"
 
@@ -360,10 +361,10 @@ def _free_flight(dt: float, steps: int, rho_inf: float = 1.0, frame_every: int =
                                             frame_interval=dt * frame_every))
     prepared = prepare(scene)
     options = NewtonOptions(rtol=min(scene.simulation.rtol, 1e-6) * 1e-2)  # as rodnet.run does
-    stepper = Stepper(prepared.model, scene.integrator, scene.simulation.rho_inf, options)
+    stepper = implicit_scheme(prepared.system, scene.integrator, scene.simulation.rho_inf, options)
     frames: list[tuple[float, object, np.ndarray]] = []
-    integrate_implicit(stepper, prepared.q0, prepared.v0, prepared.times, dt, False,
-                       lambda t, q, v: frames.append((t, q, v.copy())))
+    integrate_implicit(stepper, prepared.state, prepared.times, dt, False,
+                       lambda t, s: frames.append((t, s.q, s.v.copy())))
     return prepared.model, frames
 
 
@@ -398,7 +399,7 @@ def _internal_torque(model, q, v) -> tuple[float, float]:
     element makes zero in every state: the model itself conserves angular momentum exactly.
     """
     n = model.n_nodes
-    g = model.generalized_force(q, v, 0.0)
+    g = model.forces(q, v, 0.0, 1.0, False)[0]
     omega = v[3 * n:].reshape(-1, 3)
     f = g[:3 * n].reshape(-1, 3)
     moment = g[3 * n:].reshape(-1, 3) - np.cross(omega, model.rotary_inertia * omega)

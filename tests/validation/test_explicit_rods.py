@@ -13,7 +13,8 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from rodnet.errors import SceneError
-from rodnet.integrate.explicit_rods import integrate_explicit_rods
+from rodnet.integrate.explicit import integrate_explicit
+from rodnet.models.system import ThreadSystem
 from rodnet.kernels.tension import REVERSED_STIFFNESS
 from rodnet.run import prepare, run
 from rodnet.scene import scene_from_toml
@@ -78,8 +79,8 @@ def test_element_bound_is_below_the_true_limit_and_close_to_it() -> None:
     """(C48) against the largest eigenvalue of the assembled flat net (packing 1: the start is
     the stress-free state), with the scaled rotary inertia the run uses."""
     p = prepare(net(packing=1.0))
-    model, plan = p.model, p.rod_plan
-    linear = dataclasses.replace(model, tension_only=False)
+    model, plan = p.model, p.built
+    linear = ThreadSystem(dataclasses.replace(model, tension_only=False))
     _, K, _ = linear.tangents(p.q0, np.zeros(model.n_dof), 0.0)
     scale = sp.diags(1.0 / np.sqrt(model.dof_mass))
     lam = spla.eigsh((scale @ (0.5 * (K + K.T)) @ scale).tocsc(), k=1, which="LA",
@@ -89,7 +90,7 @@ def test_element_bound_is_below_the_true_limit_and_close_to_it() -> None:
     true_limit = 2.0 * (np.sqrt(1.0 + zeta**2) - zeta) / omega
     assert plan.stable_step <= true_limit
     assert plan.stable_step > 0.85 * true_limit        # measured: 0.925
-    assert plan.dt == pytest.approx(0.5 * plan.stable_step)
+    assert p.dt == pytest.approx(0.5 * plan.stable_step)
 
 
 def test_cantilever_frequency_against_euler_bernoulli(tmp_path: Path) -> None:
@@ -98,15 +99,15 @@ def test_cantilever_frequency_against_euler_bernoulli(tmp_path: Path) -> None:
     the rotary inertia is scaled by a large factor yet moves the period by well under 1 %."""
     scene = cantilever(duration=0.42, elements=20)
     p = prepare(scene)
-    assert p.rod_plan.scale > 10.0       # measured: 21
+    assert p.built.rotary_inertia_scale > 10.0       # measured: 21
     # initial velocity: the static deflection shape of a tip load, 1 mm/s at the tip
     v0 = np.array(p.v0)
     x = p.q0.x[:, 0]
     shape = x**2 * (3.0 - x) / 2.0
     v0[2:3 * len(x):3] = 1e-3 * shape
     times, tips = [], []
-    integrate_explicit_rods(p.model, p.q0, v0, p.times, p.rod_plan,
-                            lambda t, q, v: (times.append(t), tips.append(q.x[-1, 2])))
+    integrate_explicit(p.system, p.system.initial_state(p.q0.copy(), v0), p.times,
+                       lambda t, s: (times.append(t), tips.append(s.q.x[-1, 2])))
     z = np.array(tips)
     t = np.array(times)
     up = np.flatnonzero((z[:-1] < 0.0) & (z[1:] >= 0.0))
@@ -180,8 +181,8 @@ def test_scaling_falls_with_the_step_and_starts_with_the_unscaled_momentum() -> 
     velocities carry the unscaled model's angular momentum."""
     coarse, fine = prepare(net(extra=("simulation.explicit_safety=0.5",))), \
         prepare(net(extra=("simulation.explicit_safety=0.25",)))
-    assert fine.rod_plan.dt < coarse.rod_plan.dt
-    assert fine.rod_plan.scale < 0.6 * coarse.rod_plan.scale
+    assert fine.dt < coarse.dt
+    assert fine.built.rotary_inertia_scale < 0.6 * coarse.built.rotary_inertia_scale
     unscaled = prepare(net(integrator="generalized-alpha"))
     n3 = 3 * unscaled.model.n_nodes
     own = unscaled.model.rotary_inertia.ravel()
@@ -193,8 +194,8 @@ def test_scaling_falls_with_the_step_and_starts_with_the_unscaled_momentum() -> 
 def test_unscaled_rotations_need_a_tiny_step_and_a_fixed_step_above_the_limit_is_refused() -> None:
     unscaled = prepare(net(extra=("simulation.rotary_inertia_scaling=false",)))
     scaled = prepare(net())
-    assert unscaled.rod_plan.scale == 1.0
-    assert unscaled.rod_plan.stable_step < 0.01 * scaled.rod_plan.stable_step
+    assert unscaled.built.rotary_inertia_scale == 1.0
+    assert unscaled.built.stable_step < 0.01 * scaled.built.stable_step
     with pytest.raises(SceneError, match="simulation.dt"):
         prepare(net(extra=("simulation.adaptive=false", "simulation.dt=1e-3")))
 
@@ -205,17 +206,17 @@ def test_an_inverted_element_stops_the_run() -> None:
     error_tolerance 1e-3 m: 46 elements up to 7 times their length, threads in effect cut) ends
     the run with a message naming the element; a regular frame passes."""
     from rodnet.errors import SimulationFailed
-    from rodnet.formulations.cosserat import RodConfiguration
-    from rodnet.run import Recorder
+    from rodnet.io.recorder import Recorder
+    from rodnet.state import Configuration, State
 
     p = prepare(net(integrator="generalized-alpha"))
-    recorder = Recorder(p.model, None)
-    recorder(0.0, p.q0, p.v0)
+    recorder = Recorder(p.system.frame, None, [p.system.check_frame])
+    recorder(0.0, p.state)
     a, b = p.model.pos_nodes[7]
     x = p.q0.x.copy()
     x[b] = x[a] + 2.0 * p.model.rest_length[7] * np.array([0.0, 0.0, 1.0])
     with pytest.raises(SimulationFailed, match=r"rod element \d+ .* times its rest length .* inverted"):
-        recorder(0.01, RodConfiguration(x, p.q0.quat), p.v0)
+        recorder(0.01, State(Configuration(x, p.q0.quat), p.v0))
 
 
 CROSSING = """

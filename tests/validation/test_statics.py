@@ -137,7 +137,7 @@ def bending_frequencies(model, q, deflection: int, n_modes: int = 3) -> np.ndarr
 def cantilever(diameter: float, elements: int, length: float = 1.0):
     p = prepare(scene_from_toml(rod_toml(diameter, elements, (("beam:start", "clamp"),),
                                          length=length)))
-    return p.model, p.q0
+    return p.system, p.q0
 
 
 # --- 1. cantilever natural frequencies -----------------------------------------------------------
@@ -184,7 +184,7 @@ def roller_column(elements: int):
     """Pinned-pinned column, load factor 1 = the Euler load (supports from the scene)."""
     p = prepare(scene_from_toml(column_scene(elements)))
     assert np.allclose(so3.quat_to_matrix(p.q0.quat)[:, :, 0], [1.0, 0.0, 0.0])   # d1 = axis
-    return p.model, p.q0
+    return p.system, p.q0
 
 
 def straight_equilibrium(model, q0, load_factor: float, force_tol: float):

@@ -3,8 +3,8 @@
 Work against accuracy of the explicit rod integrator with scaled rotary inertia (FORMULATION.md
 §9b) on the issue's speed case (bending and torsion, two elements per thread), beside the
 cable/lumped runs at the same thread resolution. Every run goes through
-:func:`rodnet.bench.run_one` (own process, stored in ``results/deploy_explicit_rods/runs``, reused
-on a rerun), and the table, CSV and plot come from :func:`rodnet.bench.write_outputs`.
+:func:`rodnet.tools.bench.run_one` (own process, stored in ``results/deploy_explicit_rods/runs``, reused
+on a rerun), and the table, CSV and plot come from :func:`rodnet.tools.bench.write_outputs`.
 
 References (the finest run of each family): threads with bending, the explicit run at an
 eighth of the stability limit (against the safety 0.5 run a quarter of the step and, since the
@@ -16,7 +16,7 @@ rotary inertia (``error_tolerance`` 1e-3 and 3e-3 m, run by hand) are the indepe
 before the orientation branch of the axial law (FORMULATION C51) the 1e-3 m run let 46
 elements turn against their chords from 0.24 s on (threads in effect cut; largest mouth area
 488.4 m^2); with it both run the 3 s (see the notes). Sensitivity runs (the safety 0.5 runs at
-n = 2 launched 1e-9 faster and slower, :func:`rodnet.bench.perturbed`) measure how finely the
+n = 2 launched 1e-9 faster and slower, :func:`rodnet.tools.bench.perturbed`) measure how finely the
 deployment's measures are defined at all.
 
 Usage: ``python validation/benchmarks/deploy_explicit_rods.py``
@@ -26,7 +26,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from rodnet.bench import BenchRun, Study, perturbed, run_study, write_outputs
+from rodnet.tools.bench import BenchRun, Study, perturbed, run_study, write_outputs
 
 HERE = Path(__file__).parent
 FOLDER = HERE / "results" / "deploy_explicit_rods"

@@ -4,13 +4,13 @@ What bending costs when the threads are Kirchhoff threads (``model.type = "kirch
 knots: the lumped cable plus a bending hinge at every node inside a thread,
 elements/kirchhoff/FORMULATION.md) against the cable (the lumped model, which the cable threads
 equal exactly) at the same thread resolution and step, each against the finest run of its own
-family. Every run goes through :func:`rodnet.bench.run_one` (own process, stored in
+family. Every run goes through :func:`rodnet.tools.bench.run_one` (own process, stored in
 ``results/deploy_kirchhoff/runs``, reused on a rerun); the table, CSV and plot come from
-:func:`rodnet.bench.write_outputs`.
+:func:`rodnet.tools.bench.write_outputs`.
 
 References: each family's run with two segments per thread at an eighth of its stability limit.
 Sensitivity runs (the safety 0.5 runs at n = 2 launched 1e-9 faster and slower,
-:func:`rodnet.bench.perturbed`) give the floor below which no difference means anything.
+:func:`rodnet.tools.bench.perturbed`) give the floor below which no difference means anything.
 
 Usage: ``NUMBA_NUM_THREADS=1 python validation/benchmarks/deploy_kirchhoff.py`` on an otherwise
 idle machine (the wall times are the comparison).
@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from rodnet.bench import BenchRun, Study, perturbed, run_study, write_outputs
+from rodnet.tools.bench import BenchRun, Study, perturbed, run_study, write_outputs
 
 HERE = Path(__file__).parent
 FOLDER = HERE / "results" / "deploy_kirchhoff"

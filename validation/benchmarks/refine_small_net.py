@@ -7,7 +7,7 @@ and rigid knots, explicit with the scaled rotary inertia, FORMULATION C49) and t
 eight elements per thread (about 50 min on one thread), where the largest mouth area is not yet
 monotone in n; this net is small enough to go to sixteen and show whether, and at what order,
 the largest mouth area converges in n. Errors against the run with sixteen elements of each
-family; observed orders from successive halvings (:func:`rodnet.bench.spatial_orders`); plot of
+family; observed orders from successive halvings (:func:`rodnet.tools.bench.spatial_orders`); plot of
 the largest area and of the centre-of-mass path's distance to the finest run against n.
 
 Usage, from the repository root, with one BLAS thread:
@@ -20,7 +20,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from rodnet.bench import BenchRun, Study, errors, perturbed, run_study, write_outputs
+from rodnet.tools.bench import BenchRun, Study, errors, perturbed, run_study, write_outputs
 
 FOLDER = Path(__file__).parent / "results" / "refine_small_net"
 BASE = ("net.nodes_per_side=5", "net.mesh_length=1.0", "net.corner_mass=0.2", "net.launch_speed=10.0",

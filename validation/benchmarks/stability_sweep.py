@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from rodnet.bench import GRACE, BenchRun, run_one
+from rodnet.tools.bench import GRACE, BenchRun, run_one
 
 HERE = Path(__file__).parent
 RESULTS = HERE / "results"

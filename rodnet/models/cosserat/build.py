@@ -1,162 +1,27 @@
-"""Build a :class:`~rodnet.formulations.cosserat.CosseratModel` from a scene's structure.
-
-Node triads: ``d1`` along the centreline (the mean of the adjacent segment directions), ``d2``, ``d3``
-carried along each rod by parallel transport from a first triad whose ``d2`` is the global z axis
-projected normal to ``d1`` (y when ``d1`` is along z). The stress-free strains are measured from these
-triads, so any choice is stress-free; parallel transport keeps the reference twist zero.
-"""
+"""Build a :class:`~rodnet.models.cosserat.model.CosseratModel` from a scene's structure: rods
+here, nets in :mod:`rodnet.models.cosserat.net` (triads and quaternion signs:
+:mod:`rodnet.models.cosserat.geometry`)."""
 
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
 from numpy.typing import NDArray
-from scipy.sparse.csgraph import breadth_first_order
 
 from rodnet.config import Scene
 from rodnet.errors import SceneError
-from rodnet.formulations.cosserat import CosseratModel, RodConfiguration
 from rodnet.kernels import so3
 from rodnet.kernels.cosserat_strain import reference_strains
+from rodnet.models.cosserat.geometry import (align_quaternion_signs, node_triads,
+                                             residual_bending_shear, support_dofs)
+from rodnet.models.cosserat.model import CosseratModel
+from rodnet.state import Configuration
+from rodnet.models.cosserat.net import build_cosserat_net
 from rodnet.topology import Structure
 
 FloatArray = NDArray[np.float64]
 
 
-def node_triads(points: FloatArray, segments: NDArray[np.int64], thread: NDArray[np.int64]) -> FloatArray:
-    """Rotation matrices (N, 3, 3) of the nodes of chains of segments (columns d1, d2, d3)."""
-    n = len(points)
-    tangent = np.zeros((n, 3))
-    d = points[segments[:, 1]] - points[segments[:, 0]]
-    d /= np.linalg.norm(d, axis=1)[:, None]
-    np.add.at(tangent, segments[:, 0], d)
-    np.add.at(tangent, segments[:, 1], d)
-    tangent /= np.linalg.norm(tangent, axis=1)[:, None]
-    R = np.tile(np.eye(3), (n, 1, 1))
-    done = np.zeros(n, bool)
-    for th in np.unique(thread):
-        chain = segments[thread == th]
-        nodes = np.concatenate([chain[:1, 0], chain[:, 1]])
-        R[nodes[0]] = _first_triad(tangent[nodes[0]])
-        for prev, node in zip(nodes[:-1], nodes[1:]):
-            if not done[node]:
-                R[node] = _transport(tangent[prev], tangent[node]) @ R[prev]
-                done[node] = True
-        done[nodes[0]] = True
-    return R
-
-
-def _first_triad(t: FloatArray) -> FloatArray:
-    ref = np.array([0.0, 0.0, 1.0]) if abs(t[2]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    d2 = ref - (ref @ t) * t
-    d2 /= np.linalg.norm(d2)
-    return np.column_stack([t, d2, np.cross(t, d2)])
-
-
-def _transport(a: FloatArray, b: FloatArray) -> FloatArray:
-    """The smallest rotation taking unit vector ``a`` to ``b``."""
-    axis = np.cross(a, b)
-    s, c = np.linalg.norm(axis), float(a @ b)
-    if s < 1e-14:
-        return np.eye(3)
-    return so3.so3_exp((axis / s * np.arctan2(s, c))[None])[0]
-
-
-def support_dofs(names: tuple[str, ...], node: int, rotation: int, n_nodes: int) -> list[int]:
-    """Global DOF indices of the support DOF ``names`` at a position node and its rotation node
-    (``rotation < 0``: the node has no rotation of its own; rotation names are then ignored)."""
-    dofs = [3 * node + "xyz".index(d) for d in names if d in ("x", "y", "z")]
-    if rotation >= 0:
-        dofs += [3 * (n_nodes + rotation) + int(d[1]) - 1 for d in names if d.startswith("r")]
-    return dofs
-
-
-def align_quaternion_signs(quat_nodes: FloatArray, rot_nodes: NDArray[np.int64],
-                           end_offset: FloatArray | None) -> tuple[FloatArray, FloatArray | None]:
-    """Signs of the node quaternions (and of the end offsets) that start every element's
-    relative rotation on its short branch.
-
-    The relative rotation vector is the logarithm of ``conj(q1) q2`` on the quaternion double
-    cover (C11): it follows the rotations continuously past pi, so it starts where the sign of
-    each quaternion puts it, and ``q`` and ``-q`` differ by a full turn. The elements must start
-    with ``w >= 0``. Node signs are propagated along a spanning tree of the elements; an element
-    closing a loop with the wrong sign (a ring whose triads turn once around) gets an end
-    offset of ``-1`` (the identity rotation with the other sign).
-
-    Parameters
-    ----------
-    quat_nodes : (R, 4) float
-    rot_nodes : (E, 2) int
-    end_offset : (E, 2, 4) float or None
-
-    Returns
-    -------
-    quat_nodes : (R, 4) float
-    end_offset : (E, 2, 4) float or None
-    """
-    def relative_w(q: FloatArray, offset: FloatArray | None) -> FloatArray:
-        ends = q[rot_nodes]
-        if offset is not None:
-            ends = so3.quat_multiply(ends, offset)
-        return np.einsum("ei,ei->e", ends[:, 0], ends[:, 1])
-
-    q = quat_nodes.copy()
-    if np.all(relative_w(q, end_offset) >= 0.0):
-        return q, end_offset
-    if end_offset is None:
-        n = len(q)
-        a, b = rot_nodes[:, 0], rot_nodes[:, 1]
-        graph = sp.csr_matrix((np.ones(2 * len(a)), (np.r_[a, b], np.r_[b, a])), shape=(n, n))
-        sign = np.zeros(n)
-        for root in range(n):
-            if sign[root]:
-                continue
-            order, parent = breadth_first_order(graph, root, directed=False)
-            sign[root] = 1.0
-            for node in order[1:]:
-                p = parent[node]
-                sign[node] = sign[p] * (1.0 if q[p] @ q[node] >= 0.0 else -1.0)
-        q *= sign[:, None]
-        wrong = relative_w(q, None) < 0.0
-        if not wrong.any():
-            return q, None
-        end_offset = np.zeros((len(rot_nodes), 2, 4))
-        end_offset[:, :, 0] = 1.0
-    else:
-        end_offset = end_offset.copy()
-        wrong = relative_w(q, end_offset) < 0.0
-    end_offset[wrong, 1] *= -1.0
-    return q, end_offset
-
-
-def residual_bending_shear(stiffness: FloatArray, rest_length: FloatArray) -> FloatArray:
-    """Section stiffnesses with the shear stiffness lowered by the residual bending flexibility
-    of each element (FORMULATION.md, C44): ``1/GA_eff = 1/GA + Le^2 / (12 EI)``.
-
-    Parameters
-    ----------
-    stiffness : (E, 6) float
-        ``[EA, GA2, GA3, GJ, EI2, EI3]`` [N, N m^2]; shear along ``d2`` bends about ``d3``, so
-        ``GA2`` pairs with ``EI3`` and ``GA3`` with ``EI2``.
-    rest_length : (E,) float
-        Element length ``Le`` [m].
-
-    Returns
-    -------
-    (E, 6) float
-        A copy with ``GA2``, ``GA3`` replaced; 0 where the paired ``EI`` is 0 (no bending
-        stiffness: nothing resists the element's rotation relative to its chord).
-    """
-    out = np.array(stiffness, dtype=float)
-    for shear, bend in ((1, 5), (2, 4)):
-        ga, ei = out[:, shear], out[:, bend]
-        flexible = (ei > 0.0) & (ga > 0.0)
-        ei, ga = np.where(flexible, ei, 1.0), np.where(flexible, ga, 1.0)
-        out[:, shear] = np.where(flexible, 1.0 / (1.0 / ga + rest_length**2 / (12.0 * ei)), 0.0)
-    return out
-
-
-def build_cosserat(scene: Scene, structure: Structure) -> tuple[CosseratModel, RodConfiguration, FloatArray]:
+def build_cosserat(scene: Scene, structure: Structure) -> tuple[CosseratModel, Configuration, FloatArray]:
     """The rod model, its initial configuration and initial velocities (n_dof,)."""
     if structure.net is not None and scene.rods:
         raise SceneError("rods", [r.name for r in scene.rods], "a Cosserat [net] scene cannot also "
@@ -176,8 +41,6 @@ def build_cosserat(scene: Scene, structure: Structure) -> tuple[CosseratModel, R
     if scene.model.shear_correction == "residual-bending":
         stiffness = residual_bending_shear(stiffness, le)
     if structure.net is not None:
-        from rodnet.formulations.cosserat_net import build_cosserat_net
-
         return build_cosserat_net(scene, structure, {"stiffness": stiffness, "tau": tau,
                                                      "rho_a": rho_a, "rho_i": rho_i})
     seg = structure.segments
@@ -209,4 +72,4 @@ def build_cosserat(scene: Scene, structure: Structure) -> tuple[CosseratModel, R
     v0 = np.zeros(6 * n)
     v0[:3 * n] = structure.velocities.ravel()
     v0[~free] = 0.0
-    return model, RodConfiguration(structure.positions.copy(), quat0), v0
+    return model, Configuration(structure.positions.copy(), quat0), v0

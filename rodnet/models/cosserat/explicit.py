@@ -1,7 +1,8 @@
-"""Explicit symplectic Euler for Cosserat rods, with selective scaling of the rotary inertia.
+"""The explicit step of Cosserat rods: stability limit, selective scaling of the rotary inertia,
+and the step control of bent elements.
 
-Scheme and step rule: ``elements/cosserat/FORMULATION.md`` §9b, (C46)-(C50). The compiled step
-loop is :func:`rodnet.kernels.cosserat_compiled.advance_explicit`.
+Scheme and step rule: ``elements/cosserat/FORMULATION.md`` §9b, (C46)-(C50); the compiled step
+loop is :mod:`rodnet.kernels.explicit`, driven by :mod:`rodnet.integrate.explicit`.
 
 A thin thread's rotary inertia is tiny (``rho I`` per length, ``I = pi d^4 / 64``), so the shear
 mode that couples a node's rotation to its neighbours' positions rings at about ``sqrt(G / rho) / r``
@@ -20,16 +21,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from rodnet.errors import SceneError, SimulationFailed
-from rodnet.formulations.cosserat import CosseratModel, RodConfiguration
-from rodnet.integrate.explicit import diverged, whole_steps
-from rodnet.integrate.frames import FrameSink, ProgressSink, StepStats
+from rodnet.errors import SceneError
 from rodnet.kernels import so3
-from rodnet.integrate.explicit_contact import MIN_STEP_FRACTION
-from rodnet.kernels.cosserat_compiled import (SERIES_ARGUMENTS, advance_explicit,
-                                              internal_force_and_tangents)
-from rodnet.kernels.rod_contact_compiled import advance_rods_contact
-from rodnet.reference.lumped import damped_limit
+from rodnet.kernels.cosserat_compiled import internal_force_and_tangents
+from rodnet.kernels.explicit import StepControl
+from rodnet.models.cosserat.model import CosseratModel
+from rodnet.models.lumped import damped_limit
 
 FloatArray = NDArray[np.float64]
 
@@ -64,14 +61,6 @@ class ExplicitRodPlan:
         system actually integrated)."""
         return dataclasses.replace(model, rotary_inertia=self.inertia)
 
-    def initial_velocities(self, model: CosseratModel, v0: FloatArray) -> FloatArray:
-        """``v0`` (n_dof,) with each rotation node's angular velocity lowered so that its angular
-        momentum ``J W`` is that of ``model``'s (unscaled) inertia (C49): a start spin given to
-        the real, nearly massless rotations does not become a flywheel."""
-        v = np.array(v0, dtype=float)
-        n3 = 3 * model.n_nodes
-        v[n3:] *= (model.rotary_inertia / self.inertia).ravel()
-        return v
 
 
 def stress_free_element_states(model: CosseratModel, angle: float = 0.0) -> tuple[FloatArray, FloatArray]:
@@ -245,134 +234,18 @@ def _raised_inertia(model: CosseratModel, bound: ElementBound, K: FloatArray,
     return np.maximum(model.rotary_inertia, raised[:, None])
 
 
-def kernel_arrays(model: CosseratModel) -> tuple[tuple, tuple, tuple]:
-    """The ``element``, ``nodes`` and ``scratch`` arguments of
-    :func:`rodnet.kernels.cosserat_compiled.advance_explicit` for ``model``."""
-    f = np.ascontiguousarray
-    n_el = len(model.rest_length)
-    if model.end_offset is None:
-        offset_q, offset_R = np.zeros((0, 2, 4)), np.zeros((0, 2, 3, 3))
-    else:
-        offset_q = f(model.end_offset, dtype=float)
-        offset_R = f(so3.quat_to_matrix(offset_q))
-    element = (f(model.pos_nodes, dtype=np.int64), f(model.rot_nodes, dtype=np.int64), offset_q,
-               offset_R, f(model.rest_length, dtype=float), f(model.reference_strain, dtype=float),
-               f(model.stiffness, dtype=float), f(model.tau, dtype=float), model.tension_only,
-               model.kink_strain)
-    free = model.free.reshape(-1, 3)
-    n = model.n_nodes
-    inv_mass = np.where(free[:n], 1.0 / np.maximum(model.node_mass, 1e-300)[:, None], 0.0)
-    inertia = f(model.rotary_inertia, dtype=float)
-    inv_inertia = np.where(free[n:], 1.0 / np.maximum(inertia, 1e-300), 0.0)
-    weight = model.node_mass[:, None] * np.asarray(model.gravity, float)
-    load_rot = model.load_nodes if model.load_rot_nodes is None else model.load_rot_nodes
-    nodes = (f(inv_mass), inertia, f(inv_inertia), f(weight), f(model.load_nodes, dtype=np.int64),
-             f(load_rot, dtype=np.int64), f(model.load_force, dtype=float).reshape(-1, 3),
-             f(model.load_moment, dtype=float).reshape(-1, 3), f(model.load_ramp, dtype=float))
-    scratch = (np.empty((n_el, 2, 3)), np.empty((n_el, 2, 4)), np.empty((n_el, 12)),
-               np.empty((n_el, 12)), np.empty((n_el, 2)), np.empty((n, 3)),
-               np.empty((model.n_rot, 3)))
-    return element, nodes, scratch
+def rod_explicit_plan(model: CosseratModel, v0: FloatArray, dt: float, adaptive: bool,
+                      safety: float, scale_rotary_inertia: bool,
+                      ) -> tuple[CosseratModel, FloatArray, StepControl]:
+    """The model the explicit loop runs (with the rotary inertia of (C49) when scaled), its
+    start velocities and the rotation-controlled step control (C48)-(C50).
 
-
-def integrate_explicit_rods(model: CosseratModel, q0: RodConfiguration, v0: FloatArray,
-                            times: FloatArray, plan: ExplicitRodPlan, on_frame: FrameSink,
-                            on_progress: ProgressSink | None = None,
-                            stats: StepStats | None = None,
-                            near_dt: float | None = None) -> StepStats:
-    """Step from ``times[0]`` to ``times[-1]`` by (C46)-(C47), handing every frame time's state
-    (a :class:`RodConfiguration` and the velocities (n_dof,)) to ``on_frame``.
-
-    ``model`` carries the rotary inertia to integrate with (:meth:`ExplicitRodPlan.model`).
-    Between two frames the step is ``plan.dt`` [s] shrunk so that a whole number of steps fits,
-    and shortened further while an element is bent or twisted (C50). A model with rigid bodies
-    (``model.contact``, :class:`rodnet.contact.cosserat.CosseratContactModel`) runs the loop with
-    contact and free bodies, :func:`rodnet.kernels.rod_contact_compiled.advance_rods_contact`:
-    ``near_dt`` [s] (default ``plan.dt``) is then its step while a body is within reach of a
-    thread (E5), and friction work goes to ``stats.extra["friction_work"]`` [J].
-
-    Raises
-    ------
-    SimulationFailed
-        When the state becomes non-finite, or a point near a body moves so fast that its
-        travel-limited step falls below ``MIN_STEP_FRACTION`` of the step; every earlier frame
-        has been handed on.
+    The start velocities are ``v0`` (n_dof,) with each rotation node's angular velocity lowered
+    so that its angular momentum ``J W`` under the raised inertia is that of the unscaled model
+    (C49): a start spin given to the real, nearly massless rotations does not become a flywheel.
     """
-    n3 = 3 * model.n_nodes
-    x, quat = np.array(q0.x, dtype=float), np.array(q0.quat, dtype=float)
-    v = np.array(v0[:n3], dtype=float).reshape(-1, 3)
-    W = np.array(v0[n3:], dtype=float).reshape(-1, 3)
-    element, nodes, scratch = kernel_arrays(model)
-    stats = StepStats() if stats is None else stats  # filled in place: kept if the run fails
-    contact = getattr(model, "contact", None)
-    bodies = None if contact is None else _contact_arguments(model)
-    near = plan.dt if near_dt is None else min(near_dt, plan.dt)
-    if contact is not None:
-        stats.extra.setdefault("friction_work", 0.0)
-
-    def velocities() -> FloatArray:
-        return np.concatenate([v.ravel(), W.ravel()])
-
-    on_frame(float(times[0]), RodConfiguration(x.copy(), quat.copy()), velocities())
-    for t_start, t_end in zip(times[:-1], times[1:]):
-        _, h = whole_steps(t_start, t_end, plan.dt)
-        if bodies is None:
-            status, t, steps, h_min, peak, phi = advance_explicit(
-                x, quat, v, W, float(t_start), float(t_end), h, element, plan.control, nodes,
-                scratch)
-        else:
-            status, t, steps, h_min, peak, phi, work = advance_rods_contact(
-                x, quat, v, W, float(t_start), float(t_end), h, near,
-                MIN_STEP_FRACTION * plan.dt, *element[:8], bool(element[8]), float(element[9]),
-                *SERIES_ARGUMENTS, *plan.control, *nodes, *scratch, *bodies)
-            stats.extra["friction_work"] += work
-        stats.function_evaluations += steps
-        stats.max_element_rotation = max(stats.max_element_rotation or 0.0, phi)
-        if status == 0:  # a failed interval's shortest step and peak force are the divergence's
-            stats.record_step(h_min, steps)
-            stats.max_tension = max(stats.max_tension, peak)
-        else:
-            stats.steps += steps
-        if status == 2:
-            cause = (f"the largest element rotation reached {phi:.3g} rad, near the element's "
-                     "limit of 2 pi: the solution diverged there; use more elements_per_thread"
-                     if phi > 0.9 * 2.0 * math.pi else "check the scene's speeds")
-            raise SimulationFailed(
-                f"at t = {t:.6g} s a thread point near a body moves so fast that a step within "
-                f"its travel limit would be below {MIN_STEP_FRACTION * plan.dt:.3g} s; {cause}")
-        if status != 0 or not (np.isfinite(v).all() and np.isfinite(W).all()):
-            scene = "this scene" if contact is None else "the threads alone"
-            raise SimulationFailed(
-                f"{diverged(t, h, plan.stable_step, scene)} and the largest element rotation "
-                f"reached {phi:.3g} rad (limit 2 pi); reduce simulation.explicit_safety, or use "
-                "more elements_per_thread if that rotation is near 2 pi")
-        on_frame(float(t_end), RodConfiguration(x.copy(), quat.copy()), velocities())
-        if on_progress is not None:
-            on_progress(float(t_end), h, stats)
-    return stats
-
-
-def node_inverse_mass(model: CosseratModel) -> FloatArray:
-    """(N,) ``1 / m`` of every position node with a free axis, 0 for a fully supported one [1/kg]:
-    the node masses contact sees (its stability limit (E1) and friction cap (E2))."""
-    free = model.free[:3 * model.n_nodes].reshape(-1, 3).any(axis=1)
-    return np.where(free, 1.0 / np.maximum(model.node_mass, 1e-300), 0.0)
-
-
-def _contact_arguments(model: CosseratModel) -> tuple:
-    """The contact and body arguments of
-    :func:`rodnet.kernels.rod_contact_compiled.advance_rods_contact`, from ``contact_inv_mass``
-    on, for ``model.contact``; the bodies' state ``model.contact.motion`` is reset to the start
-    state and is advanced in place by the loop (the frame sink reads it)."""
-    contact = model.contact
-    motion = contact.motion
-    motion.set(contact.start_motion())
-    node_inv_mass = np.ascontiguousarray(node_inverse_mass(model))
-    free_inertia = np.ascontiguousarray(np.where(contact.free[:, None, None], contact.inertia, 0.0))
-    n = model.n_nodes
-    return (*contact.kernel_arguments(node_inv_mass), *contact.kernel_motion(motion),
-            motion.quaternion, motion.momentum, contact.inv_mass, free_inertia,
-            contact.inv_inertia, np.asarray(contact.gravity, dtype=float),
-            np.zeros(n, dtype=np.bool_), np.zeros((contact.n_bodies, 3)),
-            np.zeros((contact.n_bodies, 3)), np.full(contact.n_bodies, -np.inf),
-            np.zeros(contact.n_bodies))
+    plan = explicit_plan(model, dt, adaptive, safety, scale_rotary_inertia)
+    v = np.array(v0, dtype=float)
+    v[3 * model.n_nodes:] *= (model.rotary_inertia / plan.inertia).ravel()
+    control = StepControl(plan.dt, plan.dt, 0.0, True, *plan.control, plan.stable_step)
+    return plan.model(model), v, control

@@ -1,6 +1,8 @@
-"""Rods of two-node Simo-Reissner elements as a :class:`~rodnet.integrate.system.System`.
+"""Rods of two-node Simo-Reissner elements: the model a :class:`~rodnet.models.system.ThreadSystem`
+integrates.
 
-Configuration: positions ``x`` (N, 3) and unit quaternions ``quat`` (R, 4) of the rotation nodes.
+Configuration (:class:`~rodnet.state.Configuration`): positions ``x`` (N, 3) and unit quaternions
+``quat`` (R, 4) of the rotation nodes.
 DOFs: ``3 N`` translations (global) then ``3 R`` rotations (body frame). Every element joins a
 position node and a rotation node at each end (``pos_nodes``, ``rot_nodes``), so knots that share a
 position but not a rotation (pinned knots) fit the same layout. Element physics:
@@ -16,21 +18,22 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from rodnet.assembly import IterationMatrix, SparsityPattern, assemble_vector
+from rodnet.assembly import assemble_vector
+from rodnet.errors import SimulationFailed
+from rodnet.kernels import explicit as kx
 from rodnet.kernels import so3, so3_compiled
-from rodnet.kernels.cosserat_strain import kinematics
 from rodnet.kernels.cosserat import (internal_force, internal_force_and_tangents, section_state,
                                      strain_energy)
+from rodnet.kernels.cosserat_compiled import SERIES_ARGUMENTS, RodElements
+from rodnet.kernels.cosserat_strain import kinematics
+from rodnet.kernels.hinge import Hinges, no_hinges
+from rodnet.kernels.segments import Segments
+from rodnet.state import Configuration
 
 FloatArray = NDArray[np.float64]
 
-
-@dataclass(frozen=True)
-class RodConfiguration:
-    """Positions (N, 3) [m] and unit quaternions (R, 4) (w, x, y, z)."""
-
-    x: FloatArray
-    quat: FloatArray
+INVERTED_STRETCH = 1.5
+"""Chord over rest length above which a rod element counts as inverted (a frame check)."""
 
 
 @dataclass(frozen=True)
@@ -135,14 +138,14 @@ class CosseratModel:
 
     # --- element state -------------------------------------------------------------------
 
-    def _element_pose(self, q: RodConfiguration) -> tuple[FloatArray, FloatArray]:
+    def _element_pose(self, q: Configuration) -> tuple[FloatArray, FloatArray]:
         """Element end positions (E, 2, 3) and material quaternions (E, 2, 4)."""
         quat = q.quat[self.rot_nodes]
         if self.end_offset is not None:
             quat = so3.quat_multiply(quat, self.end_offset)
         return q.x[self.pos_nodes], quat
 
-    def _element_state(self, q: RodConfiguration, v: FloatArray) -> tuple[FloatArray, ...]:
+    def _element_state(self, q: Configuration, v: FloatArray) -> tuple[FloatArray, ...]:
         """Element end positions (E, 2, 3), material quaternions (E, 2, 4), velocities (E, 12)
         with angular velocities in the end's material frame."""
         x, quat = self._element_pose(q)
@@ -179,7 +182,7 @@ class CosseratModel:
             object.__setattr__(self, "_weight_cache", cached)
         return cached
 
-    def _external(self, q: RodConfiguration, t: float, load_factor: float) -> tuple[FloatArray, FloatArray]:
+    def _external(self, q: Configuration, t: float, load_factor: float) -> tuple[FloatArray, FloatArray]:
         """External force vector (n_dof,) and the body-frame load moments (L, 3)."""
         # gravity is raised with the loads in a static run, like the lumped model
         f = load_factor * self._weight
@@ -202,46 +205,20 @@ class CosseratModel:
         W = np.ascontiguousarray(v[3 * self.n_nodes:].reshape(-1, 3))
         return so3_compiled.gyroscopic(W, self.rotary_inertia)
 
-    # --- the System protocol -------------------------------------------------------------
+    # --- what the system composes (rodnet.models.system) ---------------------------------
 
-    def generalized_force(self, q: RodConfiguration, v: FloatArray, t: float,
-                          load_factor: float = 1.0) -> FloatArray:
-        g, _, _ = self._forces(q, v, t, load_factor, need_matrices=False)
-        return g
+    @property
+    def groups(self) -> list[NDArray[np.int64]]:
+        """DOFs of the blocks of :meth:`forces`: elements (E, 12), rotation nodes (R, 3)."""
+        return [self.element_dofs, 3 * (self.n_nodes + np.arange(self.n_rot))[:, None] + np.arange(3)]
 
-    def tangents(self, q: RodConfiguration, v: FloatArray, t: float, load_factor: float = 1.0,
-                 ) -> tuple[FloatArray, sp.csr_matrix, sp.csr_matrix]:
-        g, K_blocks, C_blocks = self._forces(q, v, t, load_factor, need_matrices=True)
-        return g, self._pattern.matrix(K_blocks), self._pattern.matrix(C_blocks)
+    def forces(self, q: Configuration, v: FloatArray, t: float, load_factor: float,
+               need_matrices: bool) -> tuple[FloatArray, list[FloatArray], list[FloatArray]]:
+        """``g`` (n_dof,) and, when ``need_matrices``, the blocks of K and of C in the order of
+        :attr:`groups`: ``[element (E, 12, 12), rotation node (R, 3, 3)]`` (else empty)."""
+        return self._forces(q, v, t, load_factor, need_matrices)
 
-    def iteration_matrix(self, q: RodConfiguration, v: FloatArray, t: float, dq: FloatArray,
-                         diagonal: FloatArray, a: float, b: float, load_factor: float = 1.0,
-                         ) -> tuple[FloatArray, IterationMatrix]:
-        """``g`` (n_dof,) and Newton's iteration matrix ``diag(diagonal) + a C + b K T(dq)`` on the
-        free DOFs, assembled in one pass.
-
-        ``K``, ``C`` are those of :meth:`tangents` and ``T(dq)`` is the tangent operator as
-        :meth:`times_tangent_operator` applies it (at every angle here). The matrix comes in the
-        storage its LU will use: LAPACK band storage for a thread, dense or CSR otherwise
-        (:meth:`rodnet.assembly.SparsityPattern.iteration_matrix`).
-
-        Parameters
-        ----------
-        q, v, t, load_factor
-            As :meth:`tangents`.
-        dq : (n_dof,) float
-            The increment whose tangent operator multiplies K.
-        diagonal : (n_free,) float
-            Added to the diagonal (the mass term).
-        a, b : float
-            Weights of C and of K T.
-        """
-        g, K_blocks, C_blocks = self._forces(q, v, t, load_factor, need_matrices=True)
-        S = self._pattern.iteration_matrix(diagonal, a, C_blocks, b, K_blocks,
-                                           self._triple_transforms(dq))
-        return g, S
-
-    def _forces(self, q: RodConfiguration, v: FloatArray, t: float, load_factor: float,
+    def _forces(self, q: Configuration, v: FloatArray, t: float, load_factor: float,
                 need_matrices: bool) -> tuple[FloatArray, list[FloatArray], list[FloatArray]]:
         """``g`` (n_dof,) and, when ``need_matrices``, the blocks of K and of C in the order of
         the pattern's groups: ``[element (E, 12, 12), rotation node (R, 3, 3)]`` (else empty)."""
@@ -270,86 +247,82 @@ class CosseratModel:
             np.add.at(load_block, self._load_rot, -so3.hat(body_moment))
         return g, [K_el, load_block], [C_el, d_gyro]
 
-    def retract(self, q: RodConfiguration, dq: FloatArray) -> RodConfiguration:
+    def retract(self, q: Configuration, dq: FloatArray) -> Configuration:
         n3 = 3 * self.n_nodes
-        return RodConfiguration(q.x + dq[:n3].reshape(-1, 3),
+        return Configuration(q.x + dq[:n3].reshape(-1, 3),
                                 so3_compiled.retract(q.quat, np.ascontiguousarray(dq[n3:].reshape(-1, 3))))
 
-    def tangent_operator(self, dq: FloatArray) -> sp.csr_matrix:
-        blocks = np.concatenate([np.tile(np.eye(3), (self.n_nodes, 1, 1)),
-                                 so3.dexp(dq[3 * self.n_nodes:].reshape(-1, 3))])
-        n = len(blocks)
-        full = sp.bsr_matrix((blocks, np.arange(n), np.arange(n + 1)), shape=(3 * n, 3 * n)).tocsr()
-        keep = np.flatnonzero(self.free)
-        return full[keep][:, keep]
+    def active_set(self, q: Configuration, v: FloatArray) -> bytes:
+        if not self.tension_only:
+            return b""
+        return np.packbits(self.axial_force(q, v) > 0.0).tobytes()
 
-    def times_tangent_operator(self, K: sp.csr_matrix, dq: FloatArray) -> sp.csr_matrix:
-        """``K @ tangent_operator(dq)`` without forming the operator (same pattern as K).
+    def explicit_terms(self) -> tuple[kx.Nodes, kx.Rotations, kx.Loads, Segments, Hinges,
+                                      RodElements]:
+        """The model's arrays for the compiled explicit loop (FORMULATION.md §9b)."""
+        f = np.ascontiguousarray
+        if self.end_offset is None:
+            offset_q, offset_R = np.zeros((0, 2, 4)), np.zeros((0, 2, 3, 3))
+        else:
+            offset_q = f(self.end_offset, dtype=float)
+            offset_R = f(so3.quat_to_matrix(offset_q))
+        rods = RodElements(f(self.pos_nodes, dtype=np.int64), f(self.rot_nodes, dtype=np.int64),
+                           offset_q, offset_R, f(self.rest_length, dtype=float),
+                           f(self.reference_strain, dtype=float), f(self.stiffness, dtype=float),
+                           f(self.tau, dtype=float), bool(self.tension_only),
+                           float(self.kink_strain), *SERIES_ARGUMENTS)
+        free = self.free.reshape(-1, 3)
+        n = self.n_nodes
+        inv_mass = np.where(free[:n], 1.0 / np.maximum(self.node_mass, 1e-300)[:, None], 0.0)
+        inertia = f(self.rotary_inertia, dtype=float)
+        inv_inertia = np.where(free[n:], 1.0 / np.maximum(inertia, 1e-300), 0.0)
+        weight = self.node_mass[:, None] * np.asarray(self.gravity, float)
+        loads = kx.Loads(f(self.load_nodes, dtype=np.int64), f(self._load_rot, dtype=np.int64),
+                         f(self.load_force, dtype=float).reshape(-1, 3),
+                         f(self.load_moment, dtype=float).reshape(-1, 3),
+                         f(self.load_ramp, dtype=float))
+        no_segments = Segments(np.zeros((0, 2), np.int64), np.zeros(0), np.zeros(0), np.zeros(0),
+                               0.0, True)
+        return (kx.Nodes(f(inv_mass), f(weight)), kx.Rotations(inertia, f(inv_inertia)), loads,
+                no_segments, no_hinges(), rods)
 
-        ``T(dq) = I - hat(dq) / 2 + O(|dq|^2)``: below 1e-4 rad the product is K itself, which
-        changes the Newton matrix by less than 5e-5 relative (Newton's convergence rate, never
-        its solution)."""
-        rot = dq[3 * self.n_nodes:].reshape(-1, 3)[self._free_rot_nodes]
-        if not len(rot) or np.abs(rot).max() < 1e-4:
-            return K
-        return self._pattern.right_multiply_blocks(K, self._free_rot_triples, so3_compiled.dexp(rot))
-
-    def _triple_transforms(self, dq: FloatArray) -> FloatArray:
-        """(n_dof / 3, 3, 3) blocks of the tangent operator ``T(dq)`` per DOF triple: ``dexp`` of
-        the increment on rotation nodes whose three rotations are free (as in
-        :meth:`times_tangent_operator`), the identity elsewhere."""
-        identity = self.__dict__.get("_identity_cache")
-        if identity is None:
-            identity = np.tile(np.eye(3), (self.n_dof // 3, 1, 1))
-            identity.setflags(write=False)
-            object.__setattr__(self, "_identity_cache", identity)
-        transforms = identity.copy()
-        nodes = self._free_rot_nodes
-        transforms[self.n_nodes + nodes] = so3_compiled.dexp(
-            dq[3 * self.n_nodes:].reshape(-1, 3)[nodes])
-        return transforms
-
-    @property
-    def _free_rot_nodes(self) -> NDArray[np.int64]:
-        """Rotation nodes whose three rotations are all free, (F,)."""
-        cached = self.__dict__.get("_free_rot_nodes_cache")
-        if cached is None:
-            cached = np.flatnonzero(self.free[3 * self.n_nodes:].reshape(-1, 3).all(axis=1))
-            object.__setattr__(self, "_free_rot_nodes_cache", cached)
-        return cached
-
-    @property
-    def _free_rot_triples(self) -> NDArray[np.int64]:
-        cached = self.__dict__.get("_triples_cache")
-        if cached is None:
-            dofs = 3 * (self.n_nodes + self._free_rot_nodes)[:, None] + np.arange(3)
-            cached = self._pattern.reduced_index[dofs]
-            object.__setattr__(self, "_triples_cache", cached)
-        return cached
-
-    def active_set(self, q: RodConfiguration, v: FloatArray) -> int:
-        return hash(np.packbits(self.axial_force(q, v) > 0.0).tobytes()) if self.tension_only else 0
+    def check_frame(self, t: float, frame: dict[str, FloatArray]) -> None:
+        """Raise :class:`SimulationFailed` when a rod element's chord is longer than
+        :data:`INVERTED_STRETCH` times its rest length: its material axis has turned against the
+        chord (FORMULATION.md §10), and with the tension-only law it carries no axial force at
+        any length, so the thread is in effect cut (the frame is kept: it shows the element)."""
+        x, ends = frame["positions"], self.pos_nodes
+        stretch = np.linalg.norm(x[ends[:, 1]] - x[ends[:, 0]], axis=1) / self.rest_length
+        e = int(np.argmax(stretch)) if len(stretch) else 0
+        if len(stretch) and stretch[e] > INVERTED_STRETCH:
+            raise SimulationFailed(
+                f"rod element {e} (nodes {ends[e, 0]}-{ends[e, 1]}) is {stretch[e]:.3g} times its "
+                f"rest length at t = {t:.6g} s with an axial force of {frame['tension'][e]:.3g} N: "
+                "its material axis has turned against its chord (an inverted element), so it "
+                "resists no stretching")
 
     # --- output and checks ---------------------------------------------------------------
 
-    def section_state(self, q: RodConfiguration, v: FloatArray) -> tuple[FloatArray, FloatArray]:
+    def section_state(self, q: Configuration, v: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Strains ``[Gamma, K]`` (E, 6) and stress resultants ``[N, M]`` (E, 6) incl. damping."""
         x, quat, ve = self._element_state(q, v)
         return section_state(self.rest_length, self.reference_strain, self.stiffness, self.tau,
                              x, quat, ve, self.tension_only, self.kink_strain)
 
-    def element_rotation(self, q: RodConfiguration) -> FloatArray:
+    def element_rotation(self, q: Configuration) -> FloatArray:
         """Relative rotation angle ``|psi|`` [rad] of every element's end triads, (E,): what the
         rotation stop (FORMULATION.md C52) acts on beyond ``ROTATION_STOP``."""
         return np.linalg.norm(kinematics(*self._element_pose(q))[0], axis=1)
 
-    def frame_arrays(self, q: RodConfiguration, v: FloatArray) -> dict[str, FloatArray]:
+    def frame_arrays(self, q: Configuration, v: FloatArray) -> dict[str, FloatArray]:
         """What a saved frame holds: positions, velocities, rotations, and per element the axial
-        force ``tension`` [N], ``curvature`` |(K_1, K_2)| [1/m] and ``twist`` K_0 [1/m]."""
+        force ``tension`` [N], ``curvature`` |(K_1, K_2)| [1/m] and ``twist`` K_0 [1/m]; and,
+        not saved, the largest element rotation ``max_element_rotation`` [rad]."""
         eps, stress = self.section_state(q, v)
         return {"positions": q.x.copy(), "velocities": v[:3 * self.n_nodes].reshape(-1, 3).copy(),
                 "rotations": q.quat[self._rotation_of_node], "tension": self._tension(stress[:, 0]),
-                "curvature": np.hypot(eps[:, 4], eps[:, 5]), "twist": eps[:, 3]}
+                "curvature": np.hypot(eps[:, 4], eps[:, 5]), "twist": eps[:, 3],
+                "max_element_rotation": float(self.element_rotation(q).max(initial=0.0))}
 
     @property
     def _rotation_of_node(self) -> NDArray[np.int64]:
@@ -362,7 +335,7 @@ class CosseratModel:
             object.__setattr__(self, "_rotation_of_node_cache", cached)
         return cached
 
-    def axial_force(self, q: RodConfiguration, v: FloatArray) -> FloatArray:
+    def axial_force(self, q: Configuration, v: FloatArray) -> FloatArray:
         """Axial force N [N] of every element (the ``tension`` output), (E,)."""
         return self._tension(self.section_state(q, v)[1][:, 0])
 
@@ -373,7 +346,7 @@ class CosseratModel:
         so every element of a tension-only thread reports a tension >= 0."""
         return np.abs(N) if self.tension_only else N
 
-    def energy(self, q: RodConfiguration, v: FloatArray, t: float = 0.0) -> dict[str, float]:
+    def energy(self, q: Configuration, v: FloatArray, t: float = 0.0) -> dict[str, float]:
         """Kinetic (translational + rotational) and elastic energy [J]; ``t`` is unused (the
         signature is that of the lumped model's)."""
         x, quat, _ = self._element_state(q, v)
@@ -381,12 +354,3 @@ class CosseratModel:
                                 self.tension_only, self.kink_strain)
         kinetic = 0.5 * float(np.sum(self.dof_mass * v * v))
         return {"kinetic": kinetic, "elastic": float(elastic.sum())}
-
-    @property
-    def _pattern(self) -> SparsityPattern:
-        cached = self.__dict__.get("_pattern_cache")
-        if cached is None:
-            rot_blocks = (3 * (self.n_nodes + np.arange(self.n_rot))[:, None] + np.arange(3))
-            cached = SparsityPattern([self.element_dofs, rot_blocks], self.n_dof, self.free)
-            object.__setattr__(self, "_pattern_cache", cached)
-        return cached

@@ -31,8 +31,9 @@ from numpy.typing import NDArray
 
 from rodnet.config import Scene
 from rodnet.errors import SceneError
-from rodnet.formulations.cosserat import CosseratModel, RodConfiguration
-from rodnet.formulations.cosserat_build import align_quaternion_signs, support_dofs
+from rodnet.models.cosserat.geometry import align_quaternion_signs, support_dofs
+from rodnet.models.cosserat.model import CosseratModel
+from rodnet.state import Configuration
 from rodnet.kernels import so3
 from rodnet.kernels.cosserat_strain import reference_strains, strain_matrix
 from rodnet.topology import Structure, in_plane_axes
@@ -41,7 +42,7 @@ FloatArray = NDArray[np.float64]
 
 
 def build_cosserat_net(scene: Scene, structure: Structure, section: dict[str, FloatArray],
-                       ) -> tuple[CosseratModel, RodConfiguration, FloatArray]:
+                       ) -> tuple[CosseratModel, Configuration, FloatArray]:
     """The net model, its packed initial configuration and initial velocities (n_dof,).
 
     ``section`` holds per-segment ``stiffness`` (E, 6), ``tau`` (E,), ``rho_a`` (E,), ``rho_i`` (E,).
@@ -125,7 +126,7 @@ def build_cosserat_net(scene: Scene, structure: Structure, section: dict[str, Fl
     v0[3 * n_nodes:] = end_spin(n_rot, rot_nodes, offset_R, le, structure.positions[seg],
                                 quat_ends, v0[:3 * n_nodes].reshape(-1, 3)[seg]).ravel()
     v0[~free] = 0.0
-    return model, RodConfiguration(structure.positions.copy(), quat_nodes), v0
+    return model, Configuration(structure.positions.copy(), quat_nodes), v0
 
 
 def end_spin(n_rot: int, rot_nodes: NDArray[np.int64], offset_R: FloatArray,

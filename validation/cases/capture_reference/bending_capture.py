@@ -85,7 +85,7 @@ def measures(variant: str, summary: dict, a: dict, duration: float) -> dict[str,
     """Per frame: the least distance a corner mass is behind the target's centre, the fraction
     of knots within ``NEAR`` of its surface, and the net's centre-of-mass speed relative to it."""
     p = prepare(scene_from_toml(scene_text("cylinder"), overrides(variant, duration)))
-    shape = p.model.contact.shapes[0]
+    shape = p.system.contact.bodies.shapes[0]
     corners = [summary["nodes"][f"net:corner:{i}"] for i in range(4)]
     knots = np.arange(p.scene.net.nodes_per_side**2)   # knots are numbered first
     centre, q = a["body_positions"][:, 0], a["body_rotations"][:, 0]

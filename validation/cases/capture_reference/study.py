@@ -30,7 +30,8 @@ from typing import Any
 import numpy as np
 
 from rodnet.cli import demo_scene_text
-from rodnet.contact.output import ContactLog, surface_triangles
+from rodnet.contact.surfaces import surface_triangles
+from rodnet.io.recorder import Recorder
 from rodnet.kernels import so3
 from rodnet.run import RunResult, prepare, run
 from rodnet.scene import load_scene, scene_from_toml
@@ -88,27 +89,27 @@ def write_stl() -> Path:
 
 
 class FrameTimer:
-    """Wraps :class:`ContactLog` and the run's recorder to add up the time spent saving frames."""
+    """Wraps the run's recorder to add up the time spent saving frames."""
 
     def __init__(self) -> None:
         self.seconds = 0.0
-        self._original = ContactLog.__call__
+        self._original = Recorder.__call__
 
     def __enter__(self) -> FrameTimer:
         timer, original = self, self._original
 
-        def timed(log: ContactLog, t: float, q: Any, v: Any) -> None:
+        def timed(recorder: Recorder, t: float, state: Any) -> None:
             start = time.perf_counter()
             try:
-                original(log, t, q, v)
+                original(recorder, t, state)
             finally:
                 timer.seconds += time.perf_counter() - start
 
-        ContactLog.__call__ = timed  # type: ignore[method-assign]
+        Recorder.__call__ = timed  # type: ignore[method-assign]
         return self
 
     def __exit__(self, *exc: object) -> None:
-        ContactLog.__call__ = self._original  # type: ignore[method-assign]
+        Recorder.__call__ = self._original  # type: ignore[method-assign]
 
 
 def capture(shape: str, duration: float, vtk: bool, radius: float = RADIUS,
@@ -146,8 +147,8 @@ def capture_measures(result: RunResult, shape: str) -> dict[str, np.ndarray]:
     a = result.arrays
     scene = scene_from_toml(scene_text(shape)) if shape == "cylinder" else \
         load_scene(OUT / f"capture_{shape}.toml")
-    model = prepare(scene).model
-    contact = model.contact
+    p_ = prepare(scene)
+    model, contact = p_.model, p_.system.contact.bodies
     corners = [result.summary["nodes"][f"net:corner:{i}"] for i in range(4)]
     knots = np.arange(scene.net.nodes_per_side**2)   # knots are numbered first
     p, q = a["body_positions"][:, 0], a["body_rotations"][:, 0]
@@ -175,8 +176,8 @@ def shapes_figure(result: RunResult, path: Path) -> None:
     from scipy.spatial import ConvexHull
 
     a = result.arrays
-    surface = surface_triangles(prepare(scene_from_toml(scene_text("cylinder"))).model
-                                .contact.shapes[0])[0]
+    surface = surface_triangles(prepare(scene_from_toml(scene_text("cylinder"))).system
+                                .contact.bodies.shapes[0])[0]
     corners = [result.summary["nodes"][f"net:corner:{i}"] for i in range(4)]
     fig, axes = plt.subplots(2, len(INSTANTS), figsize=(3.2 * len(INSTANTS), 6.4), sharey=True)
     for column, instant in enumerate(INSTANTS):

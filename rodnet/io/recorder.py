@@ -1,0 +1,111 @@
+"""The frame recorder: every saved frame kept in memory, streamed to VTK, and checked.
+
+Integrators hand it the time and the state; a frame function (the system's, given by the run)
+turns the state into plain arrays. The recorder keeps them, writes them to the VTK series, and
+runs the checks of a frame (the run's energy guard and the model's own), which end the run with
+:class:`rodnet.errors.SimulationFailed` (the offending frame is kept: it shows the problem).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rodnet.errors import SimulationFailed
+from rodnet.io.vtk import VtkSeries
+from rodnet.state import State
+
+FrameFunction = Callable[[float, State], dict[str, Any]]
+FrameCheck = Callable[[float, dict[str, Any]], None]
+
+MONITORS = ("max_element_rotation",)
+"""Frame scalars the recorder tracks the largest of, without saving them."""
+
+SHAPES = {"positions": ("N", 3), "velocities": ("N", 3), "rotations": ("N", 4), "tension": ("E",),
+          "curvature": ("E",), "twist": ("E",), "kinetic_energy": (), "elastic_energy": (),
+          "contact_force": (), "contact_count": (), "friction_work": (), "body_force": ("B", 3),
+          "body_moment": ("B", 3), "body_positions": ("B", 3), "body_rotations": ("B", 4),
+          "body_velocities": ("B", 3), "body_angular_velocities": ("B", 3)}
+"""The arrays a frame may hold and their shape per frame (N nodes, E elements, B bodies)."""
+
+
+@dataclass
+class Recorder:
+    """Keeps every frame in memory and streams it to VTK when asked.
+
+    Parameters
+    ----------
+    frame_of : callable
+        ``frame_of(t, state) -> dict`` of arrays (:data:`SHAPES`) and monitors (:data:`MONITORS`).
+    vtk : VtkSeries or None
+    checks : list of callables
+        ``check(t, frame)`` raising :class:`SimulationFailed`; run on every kept frame.
+    skip_first : bool
+        Drop the first frame (a static run's unloaded start is not a load step).
+    advice : str
+        Appended to the message of a failed check: what the user should change.
+    """
+
+    frame_of: FrameFunction
+    vtk: VtkSeries | None = None
+    checks: list[FrameCheck] = field(default_factory=list)
+    skip_first: bool = False
+    advice: str = ""
+    time: list[float] = field(default_factory=list)
+    frames: list[dict[str, Any]] = field(default_factory=list)
+    monitors: dict[str, float] = field(default_factory=dict)
+
+    def __call__(self, t: float, state: State) -> None:
+        if self.skip_first:
+            self.skip_first = False
+            return
+        frame = self.frame_of(t, state)
+        for key in MONITORS:
+            if key in frame:
+                self.monitors[key] = max(self.monitors.get(key, 0.0), float(frame.pop(key)))
+        self.time.append(t)
+        self.frames.append(frame)
+        if self.vtk is not None:
+            self.vtk.write(t, frame)
+        try:
+            for check in self.checks:
+                check(t, frame)
+        except SimulationFailed as exc:
+            raise SimulationFailed(f"{exc}; {self.advice}" if self.advice else str(exc)) from None
+
+    def arrays(self, n_nodes: int, n_elements: int) -> dict[str, NDArray[Any]]:
+        """``time`` (F,) and every array of the frames stacked (F, ...), e.g. ``positions`` and
+        ``velocities`` (F, N, 3), ``tension`` (F, E); a run that saved no frame gets empty
+        ``positions``, ``velocities`` and ``tension``."""
+        out: dict[str, NDArray[Any]] = {"time": np.array(self.time)}
+        if not self.frames:
+            sizes = {"N": n_nodes, "E": n_elements}
+            for key in ("positions", "velocities", "tension"):
+                out[key] = np.zeros((0, *(sizes.get(d, d) for d in SHAPES[key])))
+            return out
+        for key in self.frames[0]:
+            out[key] = np.array([f[key] for f in self.frames])
+        return out
+
+
+def energy_guard(growth: float = 0.1) -> FrameCheck:
+    """A check that stops a run whose kinetic plus elastic energy rises above the first frame's
+    by more than ``growth`` of it: for scenes with nothing that does work on them (no gravity,
+    no loads), whose energy can only fall."""
+    start: list[float] = []
+
+    def check(t: float, frame: dict[str, Any]) -> None:
+        now = frame["kinetic_energy"] + frame["elastic_energy"]
+        if not start:
+            start.append(now)
+        if not np.isfinite(now):
+            raise SimulationFailed(f"the state became non-finite (NaN or inf) by t = {t:.6g} s")
+        if now > start[0] * (1.0 + growth) and now - start[0] > 1e-9:
+            raise SimulationFailed(
+                f"the energy grew from {start[0]:.6g} J to {now:.6g} J by t = {t:.6g} s although "
+                "nothing does work on the structure: the time integration is unstable at this step")
+
+    return check

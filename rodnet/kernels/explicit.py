@@ -1,0 +1,369 @@
+"""The compiled explicit step loop of every model: symplectic Euler from one saved frame to the
+next, without returning to Python.
+
+A model hands the loop its arrays as an :class:`ExplicitProblem`, a bundle of the terms it has
+(each with no rows when absent): lumped segments (``elements/spring/FORMULATION.md`` (S7)),
+Kirchhoff hinges (``elements/kirchhoff/FORMULATION.md`` (K3), (K4)), rod elements
+(``elements/cosserat/FORMULATION.md`` (C46), (C47)), dead loads and gravity, and contact with rigid
+bodies and the bodies' own step (``elements/contact/FORMULATION.md`` (E1)-(E5), (R1)-(R4)). Every
+step evaluates the forces at the start of the step, then
+
+    v1 = v0 + h m^-1 f,   x1 = x0 + h v1                                        (S9), (C46)
+    W1 = W0 + h J^-1 [mu - W0 x (J W0)],   q1 = q0 o exp(h W1)                  (C47)
+
+and moves the free bodies. The step length is decided by :class:`StepControl`:
+
+- fixed steps (``rotation_controlled`` False: models without rod elements): the frame interval is
+  divided into a whole number of equal steps, ``t = t_start + k h``;
+- rotation-controlled steps (rods): each step is the base step times the factor (C50) at the
+  largest element rotation of the structure, the last one cut to land on the frame time.
+
+With bodies, the base step drops to ``near_dt`` for the rest of the interval once a body is within
+reach (E5), and to 0.9 times the travel-limited step when a point near a body would move more
+than its travel limit (E3); the step is then redone from the same state (fixed steps divide the
+rest of the interval anew).
+
+:func:`march` and :func:`march_parallel` are the same loop (:func:`_march`) compiled without and
+with numba's parallel loops over elements and nodes; :func:`forces` evaluates the forces alone
+(RK45, tests).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numba
+import numpy as np
+
+from rodnet.kernels.contact_compiled import (ContactData, ContactScratch, accumulate_contact,
+                                             body_speed, forget_clearance, largest_speed,
+                                             select_bodies)
+from rodnet.kernels.cosserat_compiled import RodElements, rod_forces, scatter_forces
+from rodnet.kernels.rigid_body import advance_bodies
+from rodnet.kernels.hinge import Hinges
+from rodnet.kernels.segments import Segments, hinge_forces, segment_forces
+
+
+class Nodes(NamedTuple):
+    """``inv_mass`` (N, 3) [1/kg], 0 on supported DOFs; ``weight`` (N, 3): gravity on the node
+    masses [N]."""
+
+    inv_mass: np.ndarray
+    weight: np.ndarray
+
+
+class Rotations(NamedTuple):
+    """Body-frame principal rotary inertia of the rotation nodes, ``inertia`` (R, 3)
+    [kg m^2], and ``inv_inertia`` (R, 3), 0 on supported DOFs; R = 0 without rotations."""
+
+    inertia: np.ndarray
+    inv_inertia: np.ndarray
+
+
+class Loads(NamedTuple):
+    """Dead loads: ``nodes`` (L,) position node and ``rot_nodes`` (L,) rotation node of each,
+    ``force`` (L, 3) [N] and ``moment`` (L, 3) [N m] in fixed global directions, ``ramp`` (L,)
+    [s] (0: applied at once)."""
+
+    nodes: np.ndarray
+    rot_nodes: np.ndarray
+    force: np.ndarray
+    moment: np.ndarray
+    ramp: np.ndarray
+
+
+class BodyMass(NamedTuple):
+    """Mass properties of the rigid bodies for (R1)-(R4): ``inv_mass`` (B,) [1/kg] (0 for a
+    fixed body), ``inertia`` and ``inv_inertia`` (B, 3, 3) body axes (0 for a fixed body),
+    ``gravity`` (3,) [m/s^2]."""
+
+    inv_mass: np.ndarray
+    inertia: np.ndarray
+    inv_inertia: np.ndarray
+    gravity: np.ndarray
+
+
+class ExplicitProblem(NamedTuple):
+    """Everything the loop needs of a model, term by term."""
+
+    nodes: Nodes
+    rotations: Rotations
+    loads: Loads
+    segments: Segments
+    hinges: Hinges
+    rods: RodElements
+    contact: ContactData
+    body_mass: BodyMass
+
+
+class StepControl(NamedTuple):
+    """How the loop chooses its steps.
+
+    ``dt``: the base step far from bodies [s]; ``near_dt``: the base step while a body is within
+    reach (E5) [s]; ``min_dt``: the shortest travel-limited base step accepted [s];
+    ``rotation_controlled``: steps shrink with the element rotation (C50), by ``factor``
+    interpolated at ``angles`` [rad] (else fixed steps, ``angles = [0]``, ``factor = [1]``);
+    ``stable_step``: the stability limit of the threads [s] (for messages).
+    """
+
+    dt: float
+    near_dt: float
+    min_dt: float
+    rotation_controlled: bool
+    angles: np.ndarray
+    factor: np.ndarray
+    stable_step: float
+
+
+class Scratch(NamedTuple):
+    """Work arrays, allocated once per run: ``f_node`` (N, 3), ``m_node`` (R, 3), the rod
+    elements' ``xe`` (E, 2, 3), ``qe`` (E, 2, 4), ``ve``, ``force`` (E, 12), ``monitor`` (E, 2),
+    the bodies' ``body_work`` (9, 3) and the contact's :class:`ContactScratch`."""
+
+    f_node: np.ndarray
+    m_node: np.ndarray
+    xe: np.ndarray
+    qe: np.ndarray
+    ve: np.ndarray
+    force: np.ndarray
+    monitor: np.ndarray
+    body_work: np.ndarray
+    contact: ContactScratch
+
+
+class Bodies(NamedTuple):
+    """The rigid bodies' state arrays (:class:`rodnet.state.BodyMotion`), advanced in place:
+    ``position``, ``velocity`` (B, 3), ``quaternion`` (B, 4), ``rotation`` (B, 3, 3),
+    ``momentum``, ``omega`` (B, 3)."""
+
+    position: np.ndarray
+    velocity: np.ndarray
+    quaternion: np.ndarray
+    rotation: np.ndarray
+    momentum: np.ndarray
+    omega: np.ndarray
+
+
+class Marched(NamedTuple):
+    """What one call of the loop did: ``status`` (0 done, 1 the state became non-finite, 2 the
+    travel-limited step fell below ``min_dt``), the time reached ``t`` [s], ``steps`` taken,
+    force ``evaluations`` (steps redone included), the shortest and longest steps ``h_min``,
+    ``h_max`` [s] (a step cut to land on the frame left out), the largest axial force ``peak``
+    [N] and element rotation ``phi_max`` [rad], and the ``friction_work`` [J]."""
+
+    status: int
+    t: float
+    steps: int
+    evaluations: int
+    h_min: float
+    h_max: float
+    peak: float
+    phi_max: float
+    friction_work: float
+
+
+@numba.njit(inline="always")
+def _apply_loads(t, quat, loads, f_node, m_node):  # pragma: no cover - compiled
+    """Add the ramped dead loads at time ``t`` to the node forces and, for models with rotation
+    nodes, their moments in the body frame, ``R^T m``, to the node moments."""
+    with_rotations = m_node.shape[0] > 0
+    for j in range(loads.nodes.shape[0]):
+        scale = 1.0 if loads.ramp[j] <= 0.0 else min(1.0, t / loads.ramp[j])
+        a = loads.nodes[j]
+        if with_rotations:
+            r = loads.rot_nodes[j]
+            w, u, v, z = quat[r, 0], quat[r, 1], quat[r, 2], quat[r, 3]
+            R = (1.0 - 2.0 * (v * v + z * z), 2.0 * (u * v - w * z), 2.0 * (u * z + w * v),
+                 2.0 * (u * v + w * z), 1.0 - 2.0 * (u * u + z * z), 2.0 * (v * z - w * u),
+                 2.0 * (u * z - w * v), 2.0 * (v * z + w * u), 1.0 - 2.0 * (u * u + v * v))
+            m0, m1, m2 = loads.moment[j, 0], loads.moment[j, 1], loads.moment[j, 2]
+            for k in range(3):  # a global-axis moment in the body frame: R^T m
+                f_node[a, k] += scale * loads.force[j, k]
+                m_node[r, k] += scale * (R[k] * m0 + R[3 + k] * m1 + R[6 + k] * m2)
+        else:
+            for k in range(3):
+                f_node[a, k] += scale * loads.force[j, k]
+
+
+@numba.njit(inline="always")
+def _forces(t, x, quat, v, W, p, s):  # pragma: no cover - compiled
+    """Every force and moment on the nodes at time ``t`` into ``s.f_node``, ``s.m_node``, contact
+    aside; returns the largest axial force [N] and element rotation [rad]."""
+    f_node, m_node = s.f_node, s.m_node
+    for i in range(f_node.shape[0]):
+        for k in range(3):
+            f_node[i, k] = p.nodes.weight[i, k]
+    m_node[:, :] = 0.0
+    _apply_loads(t, quat, p.loads, f_node, m_node)
+    peak, phi = 0.0, 0.0
+    seg = p.segments
+    if seg.pairs.shape[0] > 0:
+        peak = segment_forces(x, v, f_node, seg.pairs, seg.rest_length, seg.EA, seg.etaA,
+                              seg.kink_strain, seg.tension_only)
+    h = p.hinges
+    if h.nodes.shape[0] > 0:
+        hinge_forces(x, v, f_node, h.nodes, h.stiffness, h.tau, h.rest)
+    rods = p.rods
+    if rods.rest_length.shape[0] > 0:
+        rod_peak, phi = rod_forces(x, quat, v, W, rods, s.xe, s.qe, s.ve, s.force, s.monitor)
+        peak = max(peak, rod_peak)
+        scatter_forces(s.force, rods.pos_nodes, rods.rot_nodes, rods.offset_R, f_node, m_node)
+    return peak, phi
+
+
+@numba.njit(inline="always")
+def _update(x, quat, v, W, f_node, m_node, nodes, rotations, h):  # pragma: no cover - compiled
+    """One symplectic Euler update (S9), (C46), (C47) in place; False when the state became
+    non-finite."""
+    bad = 0
+    inv_mass = nodes.inv_mass
+    for i in numba.prange(x.shape[0]):
+        for k in range(3):
+            v[i, k] += h * f_node[i, k] * inv_mass[i, k]
+            x[i, k] += h * v[i, k]
+        if not (math.isfinite(x[i, 0]) and math.isfinite(x[i, 1]) and math.isfinite(x[i, 2])):
+            bad += 1
+    inertia, inv_inertia = rotations.inertia, rotations.inv_inertia
+    for r in numba.prange(W.shape[0]):
+        w0, w1, w2 = W[r, 0], W[r, 1], W[r, 2]
+        j0, j1, j2 = inertia[r, 0] * w0, inertia[r, 1] * w1, inertia[r, 2] * w2
+        W[r, 0] = w0 + h * (m_node[r, 0] - (w1 * j2 - w2 * j1)) * inv_inertia[r, 0]
+        W[r, 1] = w1 + h * (m_node[r, 1] - (w2 * j0 - w0 * j2)) * inv_inertia[r, 1]
+        W[r, 2] = w2 + h * (m_node[r, 2] - (w0 * j1 - w1 * j0)) * inv_inertia[r, 2]
+        # q <- q o exp(h W) (so3_compiled.retract); below 0.05 rad the Taylor series of
+        # cos(a/2) and sin(a/2)/a to a^8, whose remainder is below 1e-17
+        d0, d1, d2 = h * W[r, 0], h * W[r, 1], h * W[r, 2]
+        a2 = d0 * d0 + d1 * d1 + d2 * d2
+        if a2 < 2.5e-3:
+            c = 1.0 + a2 * (-1.0 / 8.0 + a2 * (1.0 / 384.0 + a2 * (-1.0 / 46080.0 + a2 / 10321920.0)))
+            sn = 0.5 + a2 * (-1.0 / 48.0 + a2 * (1.0 / 3840.0 + a2 * (-1.0 / 645120.0 + a2 / 185794560.0)))
+        else:
+            angle = math.sqrt(a2)
+            c = math.cos(0.5 * angle)
+            sn = math.sin(0.5 * angle) / angle
+        bw, bx, by, bz = c, sn * d0, sn * d1, sn * d2
+        aw, ax, ay, az = quat[r, 0], quat[r, 1], quat[r, 2], quat[r, 3]
+        qw = aw * bw - ax * bx - ay * by - az * bz
+        qx = aw * bx + ax * bw + ay * bz - az * by
+        qy = aw * by - ax * bz + ay * bw + az * bx
+        qz = aw * bz + ax * by - ay * bx + az * bw
+        norm = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
+        if math.isfinite(norm) and norm > 0.0:
+            quat[r, 0], quat[r, 1], quat[r, 2], quat[r, 3] = qw / norm, qx / norm, qy / norm, qz / norm
+        else:
+            bad += 1
+    return bad == 0
+
+
+@numba.njit(cache=True)
+def _whole_steps(t_start, t_end, step):  # pragma: no cover - compiled
+    """``rodnet.integrate.explicit.whole_steps``: how many steps of at most ``step`` fit from
+    ``t_start`` to ``t_end``, and their length."""
+    n = max(1, math.ceil((t_end - t_start) / step - 1e-9))
+    return n, (t_end - t_start) / n
+
+
+@numba.njit(inline="always")
+def _march(x, quat, v, W, bodies, t0, t_end, n0, h0, p, control,
+           s):  # pragma: no cover - compiled
+    """The loop of :func:`march` (see the module docstring)."""
+    c, cs, bm = p.contact, s.contact, p.body_mass
+    has_bodies = c.kind.shape[0] > 0
+    peak, phi_max, h_min, h_max, work = 0.0, 0.0, np.inf, 0.0, 0.0
+    steps, evaluations = 0, 0
+    node_speed = largest_speed(v) if has_bodies else 0.0
+    fixed = not control.rotation_controlled
+    base, t = h0, t0
+    t_seg, k, n_seg, h_seg = t0, 0, n0, h0          # fixed steps: t = t_seg + k h_seg
+    while True:
+        if fixed:
+            if k >= n_seg:
+                break
+            t = t_seg + k * h_seg
+        elif not t < t_end:
+            break
+        step_peak, phi = _forces(t, x, quat, v, W, p, s)
+        evaluations += 1
+        if fixed:
+            h_full, h, last = h_seg, h_seg, False
+        else:
+            h_full = base * np.interp(phi, control.angles, control.factor)
+            remaining = t_end - t
+            last = h_full >= remaining * (1.0 - 1e-9)
+            h = remaining if last else h_full
+        power = 0.0
+        if has_bodies and select_bodies(h, node_speed, bodies.velocity, bodies.omega,
+                                        c.bound_radius, cs.travelled, cs.clearance, cs.active,
+                                        cs.body_force, cs.body_moment):
+            new_base = base
+            if h > control.near_dt * (1.0 + 1e-12):   # (E5): contact needs the shorter step
+                new_base = control.near_dt
+            else:
+                power, _, _, allowed = accumulate_contact(
+                    x, v, s.f_node, h, c, bodies.position, bodies.rotation, bodies.velocity,
+                    bodies.omega, cs)
+                if allowed < h:                       # (E3): a point would jump too far
+                    new_base = min(base, 0.9 * allowed)
+                    if new_base < control.min_dt:
+                        return Marched(2, t, steps, evaluations, h_min, h_max, peak, phi_max,
+                                       work)
+            if new_base != base:                      # redo the step from the same state
+                forget_clearance(cs.active, cs.clearance)
+                base = new_base
+                if fixed:
+                    t_seg, k = t, 0
+                    n_seg, h_seg = _whole_steps(t, t_end, base)
+                continue
+        peak = max(peak, step_peak)
+        phi_max = max(phi_max, phi)
+        h_min = min(h_min, h_full)
+        h_max = max(h_max, h_full)
+        work += h * power
+        finite = _update(x, quat, v, W, s.f_node, s.m_node, p.nodes, p.rotations, h)
+        if has_bodies:
+            node_speed = largest_speed(v)
+            advance_bodies(h, cs.body_force, cs.body_moment, bm.inv_mass, bm.inertia,
+                           bm.inv_inertia, bm.gravity, bodies.position, bodies.velocity,
+                           bodies.quaternion, bodies.rotation, bodies.momentum, bodies.omega,
+                           s.body_work)
+            for b in range(cs.travelled.shape[0]):
+                cs.travelled[b] += h * (2.0 * node_speed + body_speed(
+                    bodies.velocity, bodies.omega, c.bound_radius, b))
+        steps += 1
+        if fixed:
+            k += 1
+        else:
+            t = t_end if last else t + h
+        if not finite:
+            if fixed:
+                t = t_seg + k * h_seg
+            return Marched(1, t, steps, evaluations, h_min, h_max, peak, phi_max, work)
+    if fixed:
+        t = t_end
+    return Marched(0, t, steps, evaluations, h_min, h_max, peak, phi_max, work)
+
+
+@numba.njit(cache=True)
+def march(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control,
+          scratch):  # pragma: no cover - compiled
+    """Advance positions ``x`` (N, 3), quaternions ``quat`` (R, 4), velocities ``v`` (N, 3),
+    body-frame angular velocities ``W`` (R, 3) and the ``bodies`` (:class:`Bodies`) in place
+    from ``t0`` to ``t_end`` [s], starting with ``n0`` steps of ``h0`` [s] (the frame interval
+    divided into whole steps of at most ``control.dt``); returns a :class:`Marched`."""
+    return _march(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control, scratch)
+
+
+@numba.njit(cache=True, parallel=True)
+def march_parallel(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control,
+                   scratch):  # pragma: no cover - compiled
+    """:func:`march` with the loops over rod elements and nodes on numba's threads."""
+    return _march(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control, scratch)
+
+
+@numba.njit(cache=True)
+def forces(t, x, quat, v, W, problem, scratch):  # pragma: no cover - compiled
+    """The force (N, 3) [N] and body-frame moment (R, 3) [N m] on every node at time ``t``,
+    contact aside, into ``scratch.f_node`` and ``scratch.m_node``; returns the largest axial
+    force [N] and element rotation [rad]."""
+    return _forces(t, x, quat, v, W, problem, scratch)

@@ -1,0 +1,1 @@
+"""Cosserat rods and nets of two-node Simo-Reissner elements."""

@@ -1,0 +1,298 @@
+"""A thread model and its contact term as one system: what the integrators advance.
+
+:class:`ThreadSystem` implements :class:`rodnet.integrate.system.System` for any thread model
+(lumped segments, Kirchhoff threads, Cosserat rods, or a new one) that has the
+:class:`ThreadModel` methods, and adds the contact term of a scene with bodies
+(:class:`rodnet.contact.term.ContactTerm`) as one more force: forces add, tangent blocks are one
+more group of the sparsity pattern, fingerprints of the non-smooth state combine. The
+integrators see only this class; the registry (:mod:`rodnet.models.registry`) composes it.
+
+Newton's iteration matrix ``diag(m) + a C + b K T(dq)`` is assembled in one pass over every
+group's blocks (:meth:`rodnet.assembly.SparsityPattern.iteration_matrix`); ``T(dq)`` is the
+identity on translations and ``dexp`` of the increment on rotation nodes whose three rotations
+are free.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Any, Protocol
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import NDArray
+
+from rodnet.assembly import IterationMatrix, SparsityPattern
+from rodnet.contact.term import ContactTerm
+from rodnet.kernels import so3_compiled
+from rodnet.kernels.contact_compiled import no_contact
+from rodnet.kernels.cosserat_compiled import RodElements
+from rodnet.kernels.explicit import BodyMass, ExplicitProblem, Loads, Nodes, Rotations, StepControl
+from rodnet.kernels.hinge import Hinges
+from rodnet.kernels.segments import Segments
+from rodnet.state import BodyMotion, Configuration, State
+from rodnet.topology import Structure
+
+FloatArray = NDArray[np.float64]
+
+SMALL_ROTATION = 1e-4
+"""Below this increment [rad] ``K T(dq)`` is taken as ``K``: ``T = I - hat(dq) / 2 + O(dq^2)``
+changes Newton's matrix by less than 5e-5 relative (its convergence rate, never its solution)."""
+
+
+class ThreadModel(Protocol):
+    """What a thread model gives its system (see :mod:`rodnet.models.lumped` and
+    :mod:`rodnet.models.cosserat.model` for two of them)."""
+
+    structure: Structure
+    n_nodes: int
+    n_rot: int
+    n_dof: int
+    dof_mass: FloatArray
+    node_mass: FloatArray
+    free: NDArray[np.bool_]
+    force_scale: float
+    length_scale: float
+    groups: list[NDArray[np.int64]]
+    """DOF indices of the blocks of :meth:`forces`, one (E_g, k_g) array per group."""
+
+    def forces(self, q: Configuration, v: FloatArray, t: float, load_factor: float,
+               need_matrices: bool) -> tuple[FloatArray, list[FloatArray], list[FloatArray]]:
+        """``g`` (n_dof,) and, when asked, the blocks of ``K`` and ``C``, one per group."""
+        ...
+
+    def retract(self, q: Configuration, dq: FloatArray) -> Configuration: ...
+
+    def active_set(self, q: Configuration, v: FloatArray) -> bytes: ...
+
+    def rotation_dofs(self) -> NDArray[np.int64]: ...
+
+    def explicit_terms(self) -> tuple[Nodes, Rotations, Loads, Segments, Hinges, RodElements]: ...
+
+    def frame_arrays(self, q: Configuration, v: FloatArray) -> dict[str, Any]: ...
+
+    def energy(self, q: Configuration, v: FloatArray, t: float) -> dict[str, float]: ...
+
+    def check_frame(self, t: float, frame: dict[str, Any]) -> None: ...
+
+
+@dataclass(frozen=True, eq=False)
+class ThreadSystem:
+    """A thread model with its contact term (None without bodies) and, for explicit runs, the
+    step control of the compiled loop.
+
+    Attributes
+    ----------
+    model : ThreadModel
+    contact : ContactTerm or None
+    control : StepControl or None
+        Set by the registry for an explicit run.
+    """
+
+    model: Any
+    contact: ContactTerm | None = None
+    control: StepControl | None = field(default=None)
+
+    # --- sizes and scales ----------------------------------------------------------------
+
+    @property
+    def n_dof(self) -> int:
+        return self.model.n_dof
+
+    @property
+    def dof_mass(self) -> FloatArray:
+        return self.model.dof_mass
+
+    @property
+    def n_nodes(self) -> int:
+        """Position nodes N."""
+        return self.model.n_nodes
+
+    @property
+    def n_rot(self) -> int:
+        """Rotation nodes R (0 without rotations)."""
+        return self.model.n_rot
+
+    @property
+    def free(self) -> NDArray[np.bool_]:
+        return self.model.free
+
+    @property
+    def force_scale(self) -> float:
+        return self.model.force_scale
+
+    @property
+    def length_scale(self) -> float:
+        return self.model.length_scale
+
+    @property
+    def structure(self) -> Structure:
+        return self.model.structure
+
+    @property
+    def node_mass(self) -> FloatArray:
+        """(N,) translational node masses [kg]."""
+        return self.model.node_mass
+
+    def parallel_work(self) -> int:
+        """Work items of the compiled parallel loops (rod elements): what the thread count is
+        chosen by (:func:`rodnet.kernels.threads.use_threads`)."""
+        return int(self.model.explicit_terms()[5].rest_length.shape[0]) if self.model.n_rot else 0
+
+    @cached_property
+    def _start(self) -> BodyMotion | None:
+        """The bodies' pose in the implicit system: held fixed."""
+        return None if self.contact is None else self.contact.start_motion()
+
+    def initial_state(self, q0: Configuration, v0: FloatArray) -> State:
+        """The state at t = 0: ``q0``, ``v0`` and the bodies' start motion."""
+        return State(q0, np.array(v0, dtype=float), self._start.copy() if self._start else None)
+
+    # --- the System protocol: implicit integrators and statics ---------------------------
+
+    @cached_property
+    def _pattern(self) -> SparsityPattern:
+        groups = list(self.model.groups) + ([self.contact.dofs] if self.contact else [])
+        return SparsityPattern(groups, self.n_dof, self.free)
+
+    def _forces(self, q: Configuration, v: FloatArray, t: float, load_factor: float,
+                need_matrices: bool) -> tuple[FloatArray, list[FloatArray], list[FloatArray]]:
+        g, K_blocks, C_blocks = self.model.forces(q, v, t, load_factor, need_matrices)
+        if self.contact is None:
+            return g, K_blocks, C_blocks
+        n3 = 3 * self.model.n_nodes
+        velocities = v[:n3].reshape(-1, 3)
+        if not need_matrices:
+            g[:n3] -= self.contact.force(q.x, velocities, self._start).ravel()
+            return g, K_blocks, C_blocks
+        f, d_x, d_v = self.contact.tangents(q.x, velocities, self._start)
+        g[:n3] -= f.ravel()
+        return g, [*K_blocks, -d_x], [*C_blocks, -d_v]
+
+    def generalized_force(self, q: Configuration, v: FloatArray, t: float,
+                          load_factor: float = 1.0) -> FloatArray:
+        return self._forces(q, v, t, load_factor, need_matrices=False)[0]
+
+    def tangents(self, q: Configuration, v: FloatArray, t: float, load_factor: float = 1.0,
+                 ) -> tuple[FloatArray, sp.csr_matrix, sp.csr_matrix]:
+        g, K_blocks, C_blocks = self._forces(q, v, t, load_factor, need_matrices=True)
+        return g, self._pattern.matrix(K_blocks), self._pattern.matrix(C_blocks)
+
+    def iteration_matrix(self, q: Configuration, v: FloatArray, t: float, dq: FloatArray,
+                         diagonal: FloatArray, a: float, b: float, load_factor: float = 1.0,
+                         ) -> tuple[FloatArray, IterationMatrix]:
+        """``g`` (n_dof,) and ``diag(diagonal) + a C + b K T(dq)`` on the free DOFs, in the
+        storage its LU takes (band, dense or CSR: :meth:`SparsityPattern.iteration_matrix`)."""
+        g, K_blocks, C_blocks = self._forces(q, v, t, load_factor, need_matrices=True)
+        return g, self._pattern.iteration_matrix(diagonal, a, C_blocks, b, K_blocks,
+                                                 self._triple_transforms(dq))
+
+    def retract(self, q: Configuration, dq: FloatArray) -> Configuration:
+        return self.model.retract(q, dq)
+
+    def times_tangent_operator(self, K: sp.csr_matrix, dq: FloatArray) -> sp.csr_matrix:
+        """``K T(dq)`` without forming ``T`` (the same pattern as ``K``)."""
+        if not len(self._free_rotation_nodes):
+            return K
+        rot = dq[self._free_rotation_dofs]
+        if np.abs(rot).max() < SMALL_ROTATION:
+            return K
+        return self._pattern.right_multiply_blocks(K, self._free_rotation_triples,
+                                                   so3_compiled.dexp(rot))
+
+    def _triple_transforms(self, dq: FloatArray) -> FloatArray:
+        """(n_dof / 3, 3, 3) blocks of ``T(dq)`` per DOF triple: ``dexp`` of the increment on
+        rotation nodes whose three rotations are free, the identity elsewhere."""
+        transforms = np.tile(np.eye(3), (self.n_dof // 3, 1, 1))
+        if len(self._free_rotation_nodes):
+            transforms[self._free_rotation_dofs[:, 0] // 3] = so3_compiled.dexp(
+                np.ascontiguousarray(dq[self._free_rotation_dofs]))
+        return transforms
+
+    @cached_property
+    def _free_rotation_nodes(self) -> NDArray[np.int64]:
+        """Rotation nodes (R,) whose three rotations are all free."""
+        return np.flatnonzero(self.free[self.rotation_dofs()].reshape(-1, 3).all(axis=1))
+
+    @cached_property
+    def _free_rotation_dofs(self) -> NDArray[np.int64]:
+        """(F, 3) DOFs of the rotation nodes whose three rotations are free."""
+        return self.rotation_dofs().reshape(-1, 3)[self._free_rotation_nodes]
+
+    @cached_property
+    def _free_rotation_triples(self) -> NDArray[np.int64]:
+        return self._pattern.reduced_index[self._free_rotation_dofs]
+
+    def active_set(self, q: Configuration, v: FloatArray) -> int:
+        threads = self.model.active_set(q, v)
+        if self.contact is None:
+            return hash(threads)
+        n3 = 3 * self.model.n_nodes
+        return hash((threads, self.contact.active_set(q.x, v[:n3].reshape(-1, 3), self._start)))
+
+    def rotation_dofs(self) -> NDArray[np.int64]:
+        return self.model.rotation_dofs()
+
+    def step_travel(self, q_old: Configuration, q_new: Configuration) -> float:
+        if self.contact is None:
+            return 0.0
+        return self.contact.step_travel(q_old.x, q_new.x, self._start)
+
+    def step_work(self, q: Configuration, v: FloatArray, dt: float) -> float:
+        if self.contact is None:
+            return 0.0
+        n3 = 3 * self.model.n_nodes
+        return self.contact.step_work(q.x, v[:n3].reshape(-1, 3), dt, self._start)
+
+    # --- the System protocol: the explicit loop ------------------------------------------
+
+    def explicit_problem(self) -> tuple[ExplicitProblem, StepControl | None]:
+        """The compiled loop's arrays: the model's terms, the contact term's (none without
+        bodies), and the step control the registry chose for an explicit run (else None)."""
+        return self._explicit_problem, self.control
+
+    @cached_property
+    def _explicit_problem(self) -> ExplicitProblem:
+        nodes, rotations, loads, segments, hinges, rods = self.model.explicit_terms()
+        if self.contact is None:
+            z = np.zeros
+            contact, mass = no_contact(), BodyMass(z(0), z((0, 3, 3)), z((0, 3, 3)), z(3))
+        else:
+            contact, mass = self.contact.kernel_data, self.contact.body_mass()
+        return ExplicitProblem(nodes, rotations, loads, segments, hinges, rods, contact, mass)
+
+    # --- output --------------------------------------------------------------------------
+
+    def frame(self, t: float, state: State) -> dict[str, Any]:
+        """What a saved frame holds: the model's arrays, the kinetic and elastic energy [J] and,
+        with bodies, the contact and body arrays of :meth:`ContactTerm.frame_arrays`."""
+        frame = self.model.frame_arrays(state.q, state.v)
+        energy = self.energy(t, state)
+        frame["kinetic_energy"], frame["elastic_energy"] = energy["kinetic"], energy["elastic"]
+        if self.contact is not None and state.bodies is not None:
+            frame.update(self.contact.frame_arrays(state.q.x, state.velocities, state.bodies,
+                                                   state.friction_work))
+        return frame
+
+    def energy(self, t: float, state: State) -> dict[str, float]:
+        """Kinetic, elastic (and, where the model reports it, external-load potential) energy
+        [J]; with bodies also theirs and ``contact``, the energy in the penalty springs."""
+        energy = self.model.energy(state.q, state.v, t)
+        if self.contact is not None and state.bodies is not None:
+            for key, value in self.contact.energy(state.q.x, state.bodies).items():
+                if key in energy or key == "contact":
+                    energy[key] = energy.get(key, 0.0) + value
+        return energy
+
+    def check_frame(self, t: float, frame: dict[str, Any]) -> None:
+        """The model's checks of a saved frame (raise :class:`rodnet.errors.SimulationFailed`)."""
+        self.model.check_frame(t, frame)
+
+    def surfaces(self) -> list[tuple[str, FloatArray, NDArray[np.int64]]]:
+        """Body surfaces in their body frames, for the VTK series (none without bodies)."""
+        return [] if self.contact is None else self.contact.surfaces()
+
+    def summary(self, arrays: dict[str, Any]) -> dict[str, Any]:
+        """What the system adds to ``summary.json`` (with bodies: the contact series)."""
+        return {} if self.contact is None else self.contact.summary(arrays)

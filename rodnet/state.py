@@ -1,0 +1,98 @@
+"""The state that integrators advance: plain arrays, no physics.
+
+As in MuJoCo's ``mjModel``/``mjData`` split, a model (:mod:`rodnet.models`) holds read-only
+arrays that describe the structure, and a :class:`State` holds what changes during a run: the
+configuration (node positions, rotation-node quaternions), the generalized velocities, the free
+rigid bodies' motion and the work friction has dissipated so far. Models build the initial state;
+integrators advance copies of it; frames are taken from it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Configuration:
+    """Positions ``x`` (N, 3) [m] and unit quaternions ``quat`` (R, 4) (w, x, y, z) of the
+    rotation nodes; ``R = 0`` for models without rotations (the lumped model, cables)."""
+
+    x: FloatArray
+    quat: FloatArray = field(default_factory=lambda: np.zeros((0, 4)))
+
+    def copy(self) -> Configuration:
+        return Configuration(self.x.copy(), self.quat.copy())
+
+
+@dataclass
+class BodyMotion:
+    """The current state of every rigid body (fixed bodies keep their start values).
+
+    Attributes
+    ----------
+    position : (B, 3) float
+        Centre of mass [m].
+    velocity : (B, 3) float
+        Velocity of the centre of mass [m/s].
+    quaternion : (B, 4) float
+        Body-to-world rotation (w, x, y, z).
+    rotation : (B, 3, 3) float
+        The same rotation as a matrix.
+    momentum : (B, 3) float
+        Angular momentum about the centre of mass, world axes [kg m^2/s].
+    omega : (B, 3) float
+        Angular velocity, world axes [rad/s].
+    """
+
+    position: FloatArray
+    velocity: FloatArray
+    quaternion: FloatArray
+    rotation: FloatArray
+    momentum: FloatArray
+    omega: FloatArray
+
+    FIELDS = ("position", "velocity", "quaternion", "rotation", "momentum", "omega")
+
+    def copy(self) -> BodyMotion:
+        return BodyMotion(*(np.array(getattr(self, k)) for k in self.FIELDS))
+
+
+@dataclass
+class State:
+    """What a run advances.
+
+    Attributes
+    ----------
+    q : Configuration
+    v : (n_dof,) float
+        Generalized velocities: node velocities (N, 3) [m/s], then body-frame angular
+        velocities of the rotation nodes (R, 3) [rad/s], flattened.
+    bodies : BodyMotion or None
+        The rigid bodies (None in a scene without bodies).
+    friction_work : float
+        Work dissipated by friction since the start [J].
+    """
+
+    q: Configuration
+    v: FloatArray
+    bodies: BodyMotion | None = None
+    friction_work: float = 0.0
+
+    @property
+    def velocities(self) -> FloatArray:
+        """Node velocities (N, 3) [m/s], a view of ``v``."""
+        return self.v[:self.q.x.size].reshape(-1, 3)
+
+    @property
+    def spin(self) -> FloatArray:
+        """Body-frame angular velocities of the rotation nodes (R, 3) [rad/s], a view of ``v``."""
+        return self.v[self.q.x.size:].reshape(-1, 3)
+
+    def copy(self) -> State:
+        return replace(self, q=self.q.copy(), v=self.v.copy(),
+                       bodies=None if self.bodies is None else self.bodies.copy())
