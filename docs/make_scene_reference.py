@@ -57,7 +57,11 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
     "simulation.integrator": (
         "", 'Not set: "explicit" for `model.type = "lumped"` and `"kirchhoff"`, "generalized-alpha" '
         'otherwise (Kirchhoff threads run "explicit" or "rk45" only). '
-        '"generalized-alpha": implicit, second order, numerical dissipation set by `rho_inf`. '
+        '"generalized-alpha": implicit, second order, numerical dissipation set by `rho_inf`; '
+        "a step that raises the mechanical energy (a thread snapping taut or a penalty contact "
+        "within one step) is taken again as backward Euler. "
+        '"bdf2": implicit, second order, L-stable (variable-step BDF2; each step the '
+        "minimisation of an incremental potential). "
         '"backward-euler": implicit, first order, strongly dissipative. "midpoint": implicit, '
         "second order, conserves linear and angular momentum, no numerical dissipation. "
         '"explicit": symplectic '
@@ -100,10 +104,10 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
         "control may grow to. Not set: the larger of `dt` and `output.frame_interval`; a value "
         "below `dt` counts as `dt`."),
     "simulation.reuse_factorization": (
-        "-", "Implicit integrators and static runs: keep the LU factorisation of the iteration "
-        "matrix across Newton iterations and steps while residuals contract by at least 0.3 and "
-        "no thread changes between slack and taut; refactorise otherwise. Off by default: measure "
-        "first."),
+        "-", "Implicit integrators and static runs: an iterate whose residual fell to 0.3 of the "
+        "last one's, with no thread changed between slack and taut and no contact opened or "
+        "closed, takes its Newton correction from the last factorisation instead of a new one. "
+        "Off by default: measure first."),
     # [model]
     "model.type": (
         "", '"cosserat": geometrically exact rod elements with bending, torsion and shear '

@@ -57,6 +57,19 @@ class BandedMatrix:
         n = self.ab.shape[1]
         return n, n
 
+    def dot(self, x: FloatArray) -> FloatArray:
+        """``A x`` for a vector ``x`` (n,)."""
+        n, top = self.shape[0], self.lower + self.upper
+        xb, yb = x[self.order], np.zeros(n)
+        for k in range(-self.lower, self.upper + 1):   # the diagonal j - i = k
+            if k >= 0:
+                yb[:n - k] += self.ab[top - k, k:] * xb[k:]
+            else:
+                yb[-k:] += self.ab[top - k, :n + k] * xb[:n + k]
+        y = np.empty(n)
+        y[self.order] = yb
+        return y
+
     def toarray(self) -> FloatArray:
         """The matrix ``A`` as a dense (n, n) array."""
         n = self.shape[0]
@@ -276,3 +289,29 @@ class SparsityPattern:
 def assemble_vector(dofs: IndexArray, local: FloatArray, n_dof: int) -> FloatArray:
     """Sum element vectors ``local`` (E, k) at global DOFs ``dofs`` (E, k) into an (n_dof,) vector."""
     return np.bincount(dofs.ravel(), weights=local.ravel(), minlength=n_dof)
+
+
+def add_diagonal(matrix: IterationMatrix, shift: FloatArray) -> IterationMatrix:
+    """A new matrix ``matrix + diag(shift)`` in the same storage (CSR, band or dense);
+    ``matrix`` is left as it is."""
+    if isinstance(matrix, BandedMatrix):
+        ab = np.array(matrix.ab, order="F")
+        ab[matrix.lower + matrix.upper, np.argsort(matrix.order)] += shift
+        return BandedMatrix(ab, matrix.lower, matrix.upper, matrix.order)
+    if isinstance(matrix, np.ndarray):
+        out = matrix.copy()
+        out[np.diag_indices_from(out)] += shift
+        return out
+    return (matrix + sp.diags(shift)).tocsr()
+
+
+def diagonal(matrix: IterationMatrix) -> FloatArray:
+    """The diagonal of ``matrix`` (n,)."""
+    if isinstance(matrix, BandedMatrix):
+        d = np.empty(matrix.shape[0])
+        d[matrix.order] = matrix.ab[matrix.lower + matrix.upper]
+        return d
+    if isinstance(matrix, np.ndarray):
+        return np.diag(matrix).copy()
+    return matrix.diagonal()
+

@@ -21,7 +21,8 @@ MODEL_TYPES: dict[str, str] = {"cosserat": "generalized-alpha", "lumped": "expli
 """Every ``model.type`` and the integrator a scene of that type runs with when it names none.
 The model registry (:mod:`rodnet.models.registry`) enters every model it knows here."""
 
-INTEGRATORS: list[str] = ["generalized-alpha", "backward-euler", "midpoint", "explicit", "rk45"]
+INTEGRATORS: list[str] = ["bdf2", "generalized-alpha", "backward-euler", "midpoint", "explicit",
+                          "rk45"]
 """Every ``simulation.integrator`` (the run module enters every integrator it has)."""
 
 

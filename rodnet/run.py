@@ -131,10 +131,8 @@ Integrate = Callable[[Prepared, Recorder, Progress, StepStats], StepStats]
 
 def _newton(scene: Scene) -> NewtonOptions:
     sim = scene.simulation
-    # an adaptive dynamic run halves a step on which Newton stalls instead of iterating on
     return NewtonOptions(rtol=min(sim.rtol, 1e-6) * 1e-2,
-                         reuse_factorization=sim.reuse_factorization,
-                         stall_iterations=4 if sim.adaptive and sim.type == "dynamic" else None)
+                         reuse_factorization=sim.reuse_factorization)
 
 
 def _implicit(p: Prepared, recorder: Recorder, bar: Progress, stats: StepStats) -> StepStats:

@@ -29,6 +29,46 @@ class Configuration:
         return Configuration(self.x.copy(), self.quat.copy())
 
 
+@dataclass(frozen=True)
+class StepRate:
+    """The strain rates of an implicit step, ``(strain - reference) * inv_h``: a scheme that moves
+    the configuration as ``q1 = q* o exp(h_bar (v1 - v*))`` passes the strains of ``q*`` moved
+    back by ``h_bar`` times their rate at ``v*``, and ``inv_h = 1 / h_bar``, so that damping has
+    a potential over the step (spring FORMULATION.md, S11).
+
+    Attributes
+    ----------
+    reference : object
+        The model's strains (as :meth:`strains` of the model returns them) at the reference.
+    inv_h : float
+        1 / h_bar [1/s].
+    """
+
+    reference: object
+    inv_h: float
+
+
+@dataclass(frozen=True)
+class Linearization:
+    """How Newton's iteration matrix departs from the exact tangent.
+
+    Attributes
+    ----------
+    strain_shift : object
+        Added to the model's strains (as :meth:`strains` returns them) for the stresses of the
+        geometric stiffness: the mixed Newton step (cosserat FORMULATION.md, C55), where those
+        are the stresses of the strains linearised along the last correction. None: the
+        stresses of the configuration.
+    convex : bool
+        Replace every element block whose symmetric part is indefinite by the projection of
+        that part on the positive semidefinite matrices, so that the matrix gives a direction of
+        descent of the step's potential.
+    """
+
+    strain_shift: object = None
+    convex: bool = False
+
+
 @dataclass
 class BodyMotion:
     """The current state of every rigid body (fixed bodies keep their start values).

@@ -1,16 +1,16 @@
-"""Newton's method with an LU (band, dense or sparse), factorisation reuse and a backtracking
-line search.
+"""Newton's method with an LU (band, dense or sparse), optional factorisation reuse and a
+globalising line search (:func:`newton`).
 
 The unknown is a plain vector ``u`` on the free DOFs; the caller's ``evaluate(u)`` returns the
-residual (and, on request, the iteration matrix). Reuse: the LU of an earlier iteration (or step)
-is kept while residuals contract by at least ``reuse_contraction`` and the model's active set
-(slack/taut threads, contacts) is unchanged; otherwise it is refreshed.
+residual (and, on request, the iteration matrix). Reuse (``reuse_factorization``): the LU of an
+earlier iterate is kept while the model's active set (slack/taut threads, contacts) is
+unchanged; otherwise it is refreshed.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Callable
 
 import numpy as np
@@ -19,7 +19,8 @@ import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 from scipy.linalg.lapack import dgbtrf as _gbtrf, dgbtrs as _gbtrs, dgetrf as _getrf, dgetrs as _getrs
 
-from rodnet.assembly import DENSE_LIMIT, BandedMatrix, IterationMatrix
+from rodnet.assembly import (DENSE_LIMIT, BandedMatrix, IterationMatrix, add_diagonal,
+                             diagonal)
 from rodnet.sparse_lu import Pattern, StaticPatternLU, same_pattern
 
 FloatArray = NDArray[np.float64]
@@ -27,22 +28,32 @@ FloatArray = NDArray[np.float64]
 
 @dataclass(frozen=True, slots=True)
 class NewtonOptions:
-    """Tolerances and limits; the residual is converged when ``|r|_inf <= atol + rtol * scale``,
-    or after a full Newton correction that moves no node by more than ``xtol`` times the model's
-    length scale and turns none by more than ``xtol`` rad."""
+    """Tolerances and limits of :func:`newton`.
+
+    The residual is converged when ``|r|_inf <= atol + rtol * scale``, or when a full Newton
+    correction moves no node by more than ``xtol`` times the length scale and turns none by
+    more than ``xtol`` rad. A solve fails when it makes no progress (in ``stall_iterations``
+    iterations its correction not halved and its merit not lowered by 1e-6 of itself) or
+    reaches ``max_iterations``; a converging solve is not cut short before that.
+    ``reuse_factorization``: an iterate whose residual fell to 0.3 of the last one's, with the
+    same active set (slack and taut threads, contacts), takes its correction from the last
+    factorisation.
+    """
 
     rtol: float = 1e-8
     atol: float = 1e-10
-    max_iterations: int = 12
+    max_iterations: int = 60
     reuse_factorization: bool = False
-    reuse_contraction: float = 0.3
     max_rotation: float = np.pi / 4
     xtol: float = 1e-7
-    stall_iterations: int | None = None
-    """When set: give up after this many iterations if the residual has not fallen below
-    ``stall_contraction`` times its starting value (an adaptive stepper then halves the step
-    rather than spending the remaining iterations on a step too large for Newton)."""
-    stall_contraction: float = 0.5
+    stall_iterations: int = 12
+    mixed: bool = True
+    """Newton's matrix takes the stresses of the strains linearised along the last correction
+    (the mixed Newton step, :mod:`rodnet.integrate.mixed`) in its geometric stiffness."""
+    min_step: float = 2.0**-20
+    """The smallest step fraction the line search tries before the solve fails."""
+    armijo: float = 1e-4
+    """Sufficient decrease of the merit function per unit of its slope."""
 
 
 @dataclass
@@ -53,6 +64,8 @@ class NewtonResult:
     factorizations: int
     residual_norm: float
     message: str = ""
+    singular: bool = False
+    """The solve failed because an iteration matrix could not be factorised."""
 
 
 class LinearSolver:
@@ -169,114 +182,323 @@ class _BandLU:
         return x
 
 
-def newton(evaluate: Callable[[FloatArray, bool], tuple[FloatArray, IterationMatrix | None]],
-           u0: FloatArray, scale: float, solver: LinearSolver, options: NewtonOptions,
-           step_limit: Callable[[FloatArray], float] | None = None,
-           active_set: Callable[[FloatArray], int] | None = None,
-           on_accept: Callable[[FloatArray], None] | None = None,
-           increment_small: Callable[[FloatArray], bool] | None = None) -> NewtonResult:
-    """Solve ``r(u) = 0``.
+Evaluate = Callable[[FloatArray, "str | None"], tuple[FloatArray, IterationMatrix | None]]
+"""``evaluate(u, matrix) -> (r, S)``: the residual at ``u`` and, for ``matrix = "exact"``, the
+iteration matrix ``dr/du``; for ``"convex"`` one whose symmetric part is positive definite
+(the model's convexified element blocks: a direction of descent where the exact one gives
+none); for ``None`` no matrix."""
 
-    Parameters
+
+@dataclass
+class NewtonProblem:
+    """``r(u) = 0`` with what :func:`newton` needs besides the residual.
+
+    Attributes
     ----------
-    evaluate : callable
-        ``evaluate(u, need_matrix) -> (r, S)``: residual (n,) and, when ``need_matrix``,
-        the iteration matrix S (n, n).
-    u0 : (n,) float
-        Starting guess.
-    scale : float
-        Force scale of the problem for the relative tolerance.
-    step_limit : callable, optional
-        ``step_limit(du) -> s <= 1``: the largest fraction of the update ``du`` allowed
-        (caps rotation increments).
-    active_set : callable, optional
-        Fingerprint of the non-smooth state at ``u``; a change refreshes a reused factorisation.
+    evaluate : Evaluate
+    shorten : callable, optional
+        ``shorten(du) -> du``: the correction with every rotation increment longer than
+        ``max_rotation`` cut to it, node by node.
+    small : callable, optional
+        ``small(du) -> bool``: the correction moves the configuration by less than the
+        tolerances, so the iterate plus it is the solution.
+    merit : callable, optional
+        ``merit(u)`` whose gradient is ``r`` up to small velocity terms (the step's incremental
+        potential); None where there is none (the line search then measures ``|r|^2 / 2``).
+    weights : (n,) float, optional
+        Scales of the unknowns for the size of a correction.
     on_accept : callable, optional
-        Told every accepted iterate (lets the caller re-base a configuration).
-    increment_small : callable, optional
-        ``increment_small(du) -> bool``: a correction ``du`` moves the configuration by less than
-        the caller's length and angle tolerances. The line search computes the next (simplified)
-        Newton correction at the new iterate; when that is small, the iterate is within it of the
-        solution and is accepted, even if the residual test, relative to a force scale, is
-        stricter than the configuration needs; only when the residual fell in that iteration.
+        Told every accepted iterate.
+    active_set : callable, optional
+        Fingerprint of the non-smooth state at ``u`` (for factorisation reuse).
     """
-    u = np.array(u0, dtype=float)
-    start_factorizations = solver.factorizations
+
+    evaluate: Evaluate
+    shorten: Callable[[FloatArray], FloatArray] | None = None
+    small: Callable[[FloatArray], bool] | None = None
+    merit: Callable[[FloatArray], float] | None = None
+    weights: FloatArray | None = None
+    on_accept: Callable[[FloatArray], None] | None = None
+    active_set: Callable[[FloatArray], Any] | None = None
+
+
+def newton(problem: NewtonProblem, u0: FloatArray, scale: float, solver: LinearSolver,
+           options: NewtonOptions, history: list[float] | None = None) -> NewtonResult:
+    """Solve ``r(u) = 0`` by Newton's method, globalised for minimisation.
+
+    Every iteration takes the correction ``du = -S^-1 r`` of the exact iteration matrix ``S``
+    (rotations cut to ``max_rotation`` node by node). Steps are judged by a merit ``phi``:
+    the step's incremental potential where the system has one (its gradient is the residual up
+    to velocity terms such as gyroscopic moments), else ``|r|^2 / 2``. A trial ``u + a du``
+    decreases ``phi`` sufficiently when ``phi(u + a du) <= phi(u) + armijo a slope`` (Armijo;
+    ``slope = r . du``, or ``-|r|^2`` for ``|r|^2 / 2``); when ``phi`` changes by no more
+    than its round-off while ``|r|`` falls by ``a / 4`` of itself (near the solution); or,
+    without a potential, when the simplified correction there is shorter by that fraction
+    (Deuflhard's natural monotonicity test).
+
+    Watchdog (Chamberlain, Powell, Lemarechal and Pedersen 1982): a full step that does not
+    decrease ``phi`` is taken anyway, and within :data:`WATCHDOG_STEPS` further full steps,
+    each decreasing ``phi`` from where it starts, ``phi`` must fall below the point before the
+    free step; otherwise the iteration returns there and backtracks (``a = 1/2, ..., 1/64``).
+    A stiff thread turned by a large rotation is stretched by the linearised step (``phi`` and
+    ``|r|`` jump up) and relaxed by the next: a monotone search would cut that step short.
+
+    Where backtracking fails, the step comes from the convexified matrix ``H`` (element blocks
+    projected on the positive semidefinite ones, ``evaluate(u, "convex")``) shifted by ``mu
+    diag(|H_ii|)`` (Levenberg-Marquardt), ``mu`` raised until the potential decreases; without
+    a potential, from ``H`` with a backtracking search down to ``min_step``. Near a solution
+    full exact steps are taken, so with consistent tangents the convergence is quadratic. A
+    matrix is factorised at accepted points only; a converged iterate is polished with the
+    last factorisation.
+
+    The solve has converged when ``|r|_inf <= atol + rtol scale`` or a correction is
+    ``small``. It fails on a non-finite residual, when no step decreases ``phi``, when for
+    ``stall_iterations`` iterations neither ``phi`` fell nor the correction halved, or after
+    ``max_iterations``.
+    """
+    p = problem
+    start = solver.factorizations
     tol = options.atol + options.rtol * scale
-    fresh = not options.reuse_factorization or solver.lu is None
-    r, S = evaluate(u, fresh)
-    norm = first_norm = _max_abs(r)
-    # the active set only decides whether a kept factorisation may be reused
-    track = options.reuse_factorization and active_set is not None
-    fingerprint = active_set(u) if track else 0
-    for iteration in range(1, options.max_iterations + 1):
-        if not math.isfinite(norm):
-            return NewtonResult(u, False, iteration - 1, solver.factorizations - start_factorizations,
-                                norm, "non-finite residual")
-        if norm <= tol:
-            return NewtonResult(u, True, iteration - 1, solver.factorizations - start_factorizations, norm)
-        if (options.stall_iterations is not None and iteration > options.stall_iterations
-                and norm > options.stall_contraction * first_norm):
-            return NewtonResult(u, False, iteration - 1, solver.factorizations - start_factorizations,
-                                norm, f"stalled: residual {norm:.3g} N after {iteration - 1} "
-                                f"iterations, from {first_norm:.3g} N")
-        if fresh:
-            if S is None:
-                _, S = evaluate(u, True)
-            try:
-                solver.factorize(S)
-            except FloatingPointError as exc:
-                return NewtonResult(u, False, iteration - 1,
-                                    solver.factorizations - start_factorizations, norm, str(exc))
-        du = -solver.solve(r)
-        if step_limit is not None:
-            du *= min(1.0, step_limit(du))
-        u, r_new, norm_new, next_du = _line_search(evaluate, solver, u, du)
-        if on_accept is not None:
-            on_accept(u)
-        if (increment_small is not None and next_du is not None and norm_new < norm
-                and increment_small(next_du)):
-            # the correction is already solved for: apply it (a simplified Newton step). Only
-            # while the residual falls: when a thread turns taut within the step the old
-            # matrix can make the correction look small although the residual has grown
-            return NewtonResult(u + next_du, True, iteration,
-                                solver.factorizations - start_factorizations, norm_new)
-        contraction = norm_new / norm if norm > 0 else 0.0
-        new_fingerprint = active_set(u) if track else 0
-        fresh = (not options.reuse_factorization or contraction > options.reuse_contraction
-                 or new_fingerprint != fingerprint)
-        fingerprint, r, norm, S = new_fingerprint, r_new, norm_new, None
-    converged = norm <= tol
-    return NewtonResult(u, converged, options.max_iterations,
-                        solver.factorizations - start_factorizations, norm,
-                        "" if converged else f"no convergence in {options.max_iterations} iterations "
-                        f"(residual {norm:.3g} N, tolerance {tol:.3g} N)")
+    w = np.ones_like(u0) if p.weights is None else p.weights
+    here = _point(p, np.array(u0, dtype=float), None)
+    count = {"iterations": 0}
+
+    def done(at: _Point, ok: bool, message: str = "", singular: bool = False) -> NewtonResult:
+        return NewtonResult(at.u, ok, count["iterations"], solver.factorizations - start,
+                            at.norm, message, singular)
+
+    if not math.isfinite(here.norm):
+        return done(here, False, "non-finite residual")
+    if history is not None:
+        history.append(here.norm)
+    if here.norm <= tol:
+        return done(here, True)
+    if p.on_accept is not None:   # the start is the first iterate: its matrix is exact
+        p.on_accept(here.u)
+    if not _direction(p, solver, here, "exact"):
+        return done(here, False, "the iteration matrix cannot be factorised", True)
+    watch: _Point | None = None      # the point before a step taken without decrease
+    free = True                      # a free step may be taken (none failed since a full one)
+    shift = {"mu": LEVENBERG_START}  # the last Levenberg-Marquardt factor that served
+    watched = 0                      # monotone steps taken since the free one
+    best, since_best = math.inf, 0
+    while count["iterations"] < options.max_iterations:
+        if p.small is not None and p.small(here.du):
+            final = _point(p, here.u + here.du, None)
+            count["iterations"] += 1
+            if history is not None:
+                history.append(final.norm)
+            return done(final, True)
+        trial = _point(p, here.u + here.step, here)
+        count["iterations"] += 1
+        if watch is None and _decreases(trial, here, 1.0, options, solver, w):
+            nxt, free = trial, True
+        elif watch is None and free and math.isfinite(trial.norm):
+            nxt, watch, watched = trial, here, 0       # the watchdog's free step
+        elif watch is not None and _decreases(trial, watch, 1.0, options):
+            nxt, watch, free = trial, None, True       # the free step paid off
+        elif (watch is not None and watched < WATCHDOG_STEPS
+              and _decreases(trial, here, 1.0, options, solver, w)):
+            nxt, watched = trial, watched + 1           # on its way down: a while longer
+        else:
+            origin = here if watch is None else watch  # back to where the search began
+            free = free and watch is None              # no free step again before a full one
+            watch = None
+            nxt = _backtrack(p, origin, 1.0 / 64.0, options, solver if origin is here else None,
+                             w) if origin.slope < 0.0 else None
+            if nxt is None:
+                nxt = _levenberg(p, solver, origin, options, shift) if origin.potential else None
+                if nxt is None:
+                    if not _direction(p, solver, origin, "convex"):
+                        return done(origin, False, "the convexified matrix cannot be "
+                                    "factorised", True)
+                    nxt = _backtrack(p, origin, options.min_step, options, None, w) \
+                        if origin.slope < 0.0 else None
+                if nxt is None:
+                    return done(origin, False, f"no step along the Newton correction reduces "
+                                f"the residual {origin.norm:.3g} N (tolerance {tol:.3g} N)")
+        size = _length(w * here.du)
+        lowered = nxt.phi < here.phi - 1e-6 * abs(here.phi)
+        previous, here = here, nxt
+        if history is not None:
+            history.append(here.norm)
+        if here.norm <= tol:
+            return done(_polished(p, solver, here), True)
+        reuse = (options.reuse_factorization and p.active_set is not None
+                 and _length(here.r) <= 0.3 * _length(previous.r)
+                 and p.active_set(here.u) == p.active_set(previous.u))
+        if not (reuse and _kept_direction(p, solver, here)) and \
+                not _direction(p, solver, here, "exact"):
+            return done(here, False, "the iteration matrix cannot be factorised", True)
+        if p.on_accept is not None:
+            p.on_accept(here.u)
+        if size < 0.5 * best or lowered:
+            best, since_best = min(best, size), 0
+        else:
+            since_best += 1
+            if since_best >= options.stall_iterations:
+                return done(here, False, f"stalled: residual {here.norm:.3g} N after "
+                            f"{count['iterations']} iterations")
+    return done(here, False, f"no convergence in {options.max_iterations} iterations "
+                f"(residual {here.norm:.3g} N, tolerance {tol:.3g} N)")
 
 
-def _line_search(evaluate, solver, u, du):  # type: ignore[no-untyped-def]
-    """Deuflhard's natural monotonicity test: accept the damped step ``u + alpha du`` when the
-    simplified Newton correction there, computed with the same factorisation, is smaller than
-    ``(1 - alpha / 4) |du|``; halve ``alpha`` up to four times. Unlike a test on the residual
-    norm it is invariant to the scaling of the equations, so a stiff axial residual after a
-    large rotation does not stall the iteration."""
-    size = _length(du)
-    best = None
-    alpha = 1.0
-    for _ in range(5):
-        trial = u + alpha * du
-        r, _ = evaluate(trial, False)
-        n = _max_abs(r)
-        if math.isfinite(n):
-            correction = solver.solve(r)
-            size_next = _length(correction)
-            if size_next <= (1.0 - 0.25 * alpha) * size or size == 0.0:
-                return trial, r, n, -correction
-            if best is None or size_next < best[3]:
-                best = (trial, r, n, size_next)
+LEVENBERG_START = 1e-4
+"""The first factor ``mu`` of the Levenberg-Marquardt shift ``mu diag(|H_ii|)``."""
+
+LEVENBERG_TRIES = 12
+"""Factors tried, each ten times the last, before the shifted step is given up."""
+
+WATCHDOG_STEPS = 3
+"""Steps after a free one that may decrease the merit from where they start without yet
+bringing it below the point before the free step."""
+
+
+@dataclass
+class _Point:
+    """An iterate: ``u``, its residual, merit and (once computed) Newton correction."""
+
+    u: FloatArray
+    r: FloatArray
+    norm: float
+    phi: float
+    potential: bool
+    du: FloatArray = field(default_factory=lambda: np.zeros(0))
+    step: FloatArray = field(default_factory=lambda: np.zeros(0))
+    slope: float = 0.0
+
+
+def _point(p: NewtonProblem, u: FloatArray, near: _Point | None) -> _Point:
+    """The iterate at ``u`` with its residual and merit."""
+    r, _ = p.evaluate(u, None)
+    norm = _max_abs(r)
+    if p.merit is not None:
+        return _Point(u, r, norm, p.merit(u) if math.isfinite(norm) else math.inf, True)
+    return _Point(u, r, norm, 0.5 * _dot(r, r) if math.isfinite(norm) else math.inf, False)
+
+
+def _direction(p: NewtonProblem, solver: LinearSolver, at: _Point, matrix: str) -> bool:
+    """Factorise the ``matrix`` ("exact" or "convex") at ``at`` and store its correction, the
+    shortened step and the merit's slope along it; False when it cannot be factorised."""
+    _, S = p.evaluate(at.u, matrix)
+    curved = at.potential and matrix == "exact"
+    original = _copy(S) if curved else None   # a band matrix is factorised in place
+    try:
+        solver.factorize(S)
+    except (FloatingPointError, RuntimeError):
+        return False
+    du = -solver.solve(at.r)
+    if not np.isfinite(du).all():
+        return False
+    if curved and _dot(du, original.dot(du)) <= 0.0:   # type: ignore[union-attr]
+        # the potential curves down along du: an indefinite matrix, whose correction heads
+        # for a saddle or a maximum; the convexified matrix's heads downhill
+        return _direction(p, solver, at, "convex")
+    at.du = du
+    at.step = du if p.shorten is None else p.shorten(du)
+    # the slope of |r|^2 / 2 along an exact Newton step is -|r|^2 (the step scales it)
+    at.slope = _dot(at.r, at.step) if at.potential or matrix == "convex" else \
+        -_dot(at.r, at.r) * _ratio(at.step, du)
+    return True
+
+
+def _polished(p: NewtonProblem, solver: LinearSolver, at: _Point) -> _Point:
+    """``at`` moved by the correction of the last factorisation, when that lowers the residual:
+    a converged iterate is polished for the price of one solve (momentum-conserving schemes
+    conserve momentum to the residual left)."""
+    polished = _point(p, at.u - solver.solve(at.r), at)
+    return polished if polished.norm < at.norm else at
+
+
+def _copy(S: IterationMatrix) -> IterationMatrix:
+    """A copy of ``S`` that survives its factorisation (band storage is factorised in place)."""
+    if isinstance(S, BandedMatrix):
+        return BandedMatrix(np.array(S.ab, order="F"), S.lower, S.upper, S.order)
+    return S
+
+
+def _kept_direction(p: NewtonProblem, solver: LinearSolver, at: _Point) -> bool:
+    """The correction of the kept factorisation at ``at`` (``reuse_factorization``)."""
+    du = -solver.solve(at.r)
+    if not np.isfinite(du).all():
+        return False
+    at.du = du
+    at.step = du if p.shorten is None else p.shorten(du)
+    at.slope = _dot(at.r, at.step) if at.potential else -_dot(at.r, at.r) * _ratio(at.step, du)
+    return True
+
+
+def _ratio(step: FloatArray, du: FloatArray) -> float:
+    """The fraction of ``du`` that ``step`` (``du`` with rotations cut) keeps, in its norm."""
+    full = _length(du)
+    return _length(step) / full if full > 0.0 else 1.0
+
+
+def _decreases(trial: _Point, at: _Point, alpha: float, options: NewtonOptions,
+               solver: LinearSolver | None = None, w: FloatArray | None = None) -> bool:
+    """Whether ``trial`` = ``at + alpha step`` decreases the merit sufficiently (Armijo), or,
+    with ``phi`` unchanged to its round-off, the residual by ``alpha / 4`` of itself. Without a
+    potential, given the factorisation at ``at`` (``solver``), also when the simplified
+    correction there, ``-S^-1 r(trial)``, is shorter than ``(1 - alpha / 4) |du|`` in the norm
+    of ``w`` (Deuflhard's natural monotonicity test, invariant to the scaling of the
+    equations)."""
+    if not math.isfinite(trial.phi):
+        return False
+    if at.slope < 0.0 and trial.phi <= at.phi + options.armijo * alpha * at.slope:
+        return True
+    bound = 1.0 - 0.25 * alpha
+    roundoff = 1e-12 * max(abs(at.phi), abs(trial.phi))
+    if abs(trial.phi - at.phi) <= roundoff and _length(trial.r) <= bound * _length(at.r):
+        return True
+    if solver is None or trial.potential or w is None:
+        return False
+    return _length(w * solver.solve(trial.r)) <= bound * _length(w * at.du)
+
+
+def _levenberg(p: NewtonProblem, solver: LinearSolver, at: _Point, options: NewtonOptions,
+               shift: dict[str, float]) -> _Point | None:
+    """A step that decreases the potential from ``at``: the correction of the convexified
+    matrix ``H`` shifted by ``mu diag(|H_ii|)`` (Levenberg-Marquardt with Marquardt's
+    scaling), ``mu`` raised tenfold until the full step decreases the potential sufficiently.
+    A large shift turns the step towards steepest descent in the metric of the matrix and
+    shortens it, which tames the near-singular directions of a convexified matrix (a thread's
+    spin about its own axis between pinned knots). The factor that served, divided by ten,
+    starts the next call (``shift``)."""
+    _, H = p.evaluate(at.u, "convex")
+    scale = np.abs(diagonal(H))
+    scale = np.maximum(scale, 1e-12 * float(scale.max(initial=0.0)))
+    mu = shift["mu"]
+    for _ in range(LEVENBERG_TRIES):
+        try:
+            solver.factorize(add_diagonal(H, mu * scale))
+        except (FloatingPointError, RuntimeError):
+            mu *= 10.0
+            continue
+        du = -solver.solve(at.r)
+        step = du if p.shorten is None else p.shorten(du)
+        slope = _dot(at.r, step)
+        if np.isfinite(du).all() and slope < 0.0:
+            trial = _point(p, at.u + step, at)
+            if math.isfinite(trial.phi) and trial.phi <= at.phi + options.armijo * slope:
+                shift["mu"] = max(mu / 10.0, LEVENBERG_START)
+                at.du = du
+                return trial
+        mu *= 10.0
+    return None
+
+
+def _backtrack(p: NewtonProblem, at: _Point, smallest: float, options: NewtonOptions,
+               solver: LinearSolver | None, w: FloatArray) -> _Point | None:
+    """The first trial ``at + a step``, ``a = 1/2, 1/4, ..., smallest``, that decreases the
+    merit sufficiently (:func:`_decreases`, with ``solver`` factorised at ``at`` if given); for
+    the convexified correction from ``a = 1``."""
+    alpha = 0.5 if smallest > options.min_step else 1.0
+    while alpha >= smallest:
+        trial = _point(p, at.u + alpha * at.step, at)
+        if _decreases(trial, at, alpha, options, solver, w):
+            return trial
         alpha *= 0.5
-    if best is None:
-        return u + du, np.full_like(u, np.nan), float("nan"), None
-    return (*best[:3], None)
+    return None
 
 
 def _max_abs(r: FloatArray) -> float:
@@ -284,6 +506,12 @@ def _max_abs(r: FloatArray) -> float:
     return float(np.abs(r).max()) if r.size else 0.0
 
 
+def _dot(x: FloatArray, y: FloatArray) -> float:
+    """``x . y`` without BLAS: a threaded BLAS ``ddot`` waits for a core to come free, which
+    on a busy machine costs milliseconds per call."""
+    return float(np.einsum("i,i", x, y))
+
+
 def _length(x: FloatArray) -> float:
     """Euclidean norm of a vector."""
-    return math.sqrt(float(x @ x))
+    return math.sqrt(_dot(x, x))

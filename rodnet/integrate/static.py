@@ -10,8 +10,10 @@ from numpy.typing import NDArray
 
 from rodnet.errors import SimulationFailed
 from rodnet.integrate.frames import StepStats
-from rodnet.integrate.implicit import rotation_cap
-from rodnet.integrate.newton import LinearSolver, NewtonOptions, NewtonResult, newton
+from rodnet.integrate.implicit import cap_rotations
+from rodnet.integrate.mixed import MixedStrains
+from rodnet.integrate.newton import (LinearSolver, NewtonOptions, NewtonProblem, NewtonResult,
+                                     newton)
 from rodnet.integrate.system import FrameSink, System
 from rodnet.state import Configuration, State
 
@@ -24,7 +26,7 @@ factor raises them."""
 
 def solve_static(system: System, state: State, load_steps: int, options: NewtonOptions,
                  on_frame: FrameSink, max_halvings: int = 6,
-                 stats: StepStats | None = None) -> StepStats:
+                 stats: StepStats | None = None, history: list[float] | None = None) -> StepStats:
     """Equilibrium ``g(q, 0, load) = 0`` under loads raised in ``load_steps`` equal increments,
     from the configuration of ``state`` (moved to the equilibrium, in place).
 
@@ -46,7 +48,7 @@ def solve_static(system: System, state: State, load_steps: int, options: NewtonO
         lam, halvings = done, 0
         while lam < target - 1e-12:
             trial = min(target, lam + (target - done) / 2 ** halvings)
-            q_new, result = _static_increment(system, q, trial, options, solver, scale)
+            q_new, result = _static_increment(system, q, trial, options, solver, scale, history)
             stats.newton_iterations += result.iterations
             stats.factorizations += result.factorizations
             if not result.converged:
@@ -65,38 +67,64 @@ def solve_static(system: System, state: State, load_steps: int, options: NewtonO
 
 
 def _static_increment(system: System, q_start: Configuration, load: float, options: NewtonOptions,
-                      solver: LinearSolver, scale: float) -> tuple[Configuration, NewtonResult]:
-    """Newton on the configuration: each iterate is re-based so rotations can grow without limit."""
+                      solver: LinearSolver, scale: float,
+                      history: list[float] | None = None) -> tuple[Configuration, NewtonResult]:
+    """Newton on the configuration: every accepted iterate becomes the base the next
+    increments are measured from, so rotations can grow without limit and Newton's matrix is
+    always taken at the base (``T(0) = I``)."""
     free, zero = system.free, np.zeros(system.n_dof)
     base: dict[str, Any] = {"q": q_start, "u": np.zeros(int(free.sum()))}
+    mixed = MixedStrains(system, q_start, options.mixed)
+
+    def increment(u: FloatArray) -> FloatArray:
+        dq = np.zeros(system.n_dof)
+        dq[free] = u - base["u"]
+        return dq
 
     def moved(u: FloatArray) -> Configuration:
-        dq = np.zeros(system.n_dof)
-        dq[free] = u - base["u"]
-        return system.retract(base["q"], dq)
+        return system.retract(base["q"], increment(u))
 
-    def evaluate(u: FloatArray, need_matrix: bool) -> tuple[FloatArray, sp.csr_matrix | None]:
+    def evaluate(u: FloatArray, matrix: str | None) -> tuple[FloatArray, sp.csr_matrix | None]:
         q = moved(u)
-        if not need_matrix:
+        if matrix is None:
             return system.generalized_force(q, zero, STATIC_TIME, load)[free], None
-        g, K, _ = system.tangents(q, zero, STATIC_TIME, load)
-        dq = np.zeros(system.n_dof)
-        dq[free] = u - base["u"]
-        return g[free], system.times_tangent_operator(K, dq).tocsr()
+        g, K, _ = system.tangents(q, zero, STATIC_TIME, load,
+                                  linearization=mixed.linearization(increment(u), q,
+                                                                    matrix == "convex"))
+        return g[free], K.tocsr()
 
     def rebase(u: FloatArray) -> None:
-        base["q"], base["u"] = moved(u), u.copy()
+        q = moved(u)
+        mixed.accept(increment(u), q)
+        mixed.rebase(q)
+        base["q"], base["u"] = q, u.copy()
 
+    n_free = int(free.sum())
     rot = np.flatnonzero(np.isin(np.flatnonzero(free), system.rotation_dofs()))
+    trans = np.setdiff1d(np.arange(n_free), rot)
+    weights = np.ones(n_free)
+    weights[trans] = 1.0 / system.length_scale
+    position = np.full(system.n_dof, -1)
+    position[np.flatnonzero(free)] = np.arange(n_free)
+    nodes = position[system.rotation_dofs()].reshape(-1, 3)
+    triples = nodes[(nodes >= 0).all(axis=1)]
 
-    def step_limit(du: FloatArray) -> float:
-        return rotation_cap(du[rot], options.max_rotation)
+    def shorten(du: FloatArray) -> FloatArray:
+        return cap_rotations(du, rot, triples, options.max_rotation)
 
-    try:
-        result = newton(evaluate, np.zeros(int(free.sum())), scale, solver, options, step_limit,
-                        on_accept=rebase)
-    except RuntimeError as exc:  # exactly singular tangent
+    def small(du: FloatArray) -> bool:
+        return bool(np.abs(du[trans]).max(initial=0.0) <= options.xtol * system.length_scale
+                    and np.abs(du[rot]).max(initial=0.0) <= options.xtol)
+
+    merit = None
+    if system.potential_exact and system.potential(q_start, STATIC_TIME, load) is not None:
+        def merit(u: FloatArray) -> float:
+            return system.potential(moved(u), STATIC_TIME, load)  # type: ignore[return-value]
+
+    problem = NewtonProblem(evaluate, shorten, small, merit, weights, rebase)
+    result = newton(problem, np.zeros(n_free), scale, solver, options, history)
+    if result.singular:
         raise SimulationFailed(
             "the static tangent stiffness is singular: the structure is not supported against "
-            "rigid motion (add [[supports]]) or a DOF has no stiffness") from exc
+            "rigid motion (add [[supports]]) or a DOF has no stiffness")
     return moved(result.u), result

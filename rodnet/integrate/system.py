@@ -18,7 +18,7 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from rodnet.kernels.explicit import ExplicitProblem, StepControl
-from rodnet.state import Configuration, State
+from rodnet.state import Configuration, Linearization, State, StepRate
 
 FloatArray = NDArray[np.float64]
 IterationMatrix = object
@@ -42,12 +42,15 @@ class System(Protocol):
     # --- implicit integrators and statics ------------------------------------------------
 
     def generalized_force(self, q: Configuration, v: FloatArray, t: float,
-                          load_factor: float = 1.0) -> FloatArray:
+                          load_factor: float = 1.0, rate: StepRate | None = None) -> FloatArray:
         """``g(q, v, t)`` (n_dof,): internal, gyroscopic, damping and contact forces minus
-        external ones (``load_factor`` scales gravity and loads, for static load stepping)."""
+        external ones (``load_factor`` scales gravity and loads, for static load stepping).
+        With ``rate`` (from :meth:`step_rate`) the internal damping acts at the step's strain
+        rates instead of those of ``v``."""
         ...
 
     def tangents(self, q: Configuration, v: FloatArray, t: float, load_factor: float = 1.0,
+                 rate: StepRate | None = None, linearization: Linearization | None = None,
                  ) -> tuple[FloatArray, sp.csr_matrix, sp.csr_matrix]:
         """``g`` (n_dof,) and, on the free DOFs, ``K = dg/dq`` and ``C = dg/dv``
         (n_free, n_free)."""
@@ -55,8 +58,35 @@ class System(Protocol):
 
     def iteration_matrix(self, q: Configuration, v: FloatArray, t: float, dq: FloatArray,
                          diagonal: FloatArray, a: float, b: float, load_factor: float = 1.0,
+                         rate: StepRate | None = None,
+                         linearization: Linearization | None = None,
                          ) -> tuple[FloatArray, IterationMatrix]:
-        """``g`` and Newton's matrix ``diag(diagonal) + a C + b K T(dq)`` on the free DOFs."""
+        """``g`` and Newton's matrix ``diag(diagonal) + a C + b K T(dq)`` on the free DOFs
+        (``K`` and ``C`` as ``linearization`` says)."""
+        ...
+
+    def strains(self, q: Configuration, v: FloatArray) -> tuple[object, object]:
+        """The strains the internal damping acts on and their rates (a model's own arrays,
+        combined linearly by multistep schemes into a :class:`~rodnet.state.StepRate`)."""
+        ...
+
+    def step_rate(self, q: Configuration, v: FloatArray, h_bar: float) -> StepRate:
+        """The strain rates of a step whose end configuration is ``q o exp(h_bar (v1 - v))``:
+        damping then has a potential over the step."""
+        ...
+
+    def potential(self, q: Configuration, t: float, load_factor: float = 1.0,
+                  rate: StepRate | None = None) -> float | None:
+        """A function whose gradient is ``g`` with ``rate`` (exactly when
+        :attr:`potential_exact`, else up to velocity terms such as gyroscopic forces, contact
+        and friction) [J]; None when the system has none."""
+        ...
+
+    potential_exact: bool
+
+    def mechanical_energy(self, q: Configuration, v: FloatArray, t: float) -> float | None:
+        """Kinetic plus potential energy (internal, external at time ``t``, contact springs)
+        [J]; None where the forces have no potential."""
         ...
 
     def retract(self, q: Configuration, dq: FloatArray) -> Configuration:

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from rodnet.kernels.tension import axial_force, ramp
+from rodnet.kernels.tension import axial_force, ramp, step_strain_rate
 
 FloatArray = NDArray[np.float64]
 
@@ -19,6 +19,8 @@ FloatArray = NDArray[np.float64]
 def cable_tangents(x_a: FloatArray, x_b: FloatArray, v_a: FloatArray, v_b: FloatArray,
                    rest_length: FloatArray, EA: FloatArray, etaA: FloatArray,
                    kink_strain: float, tension_only: bool,
+                   step: tuple[FloatArray, float] | None = None,
+                   strain_shift: FloatArray | None = None, convex: bool = False,
                    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """Axial force and the end-node blocks of the internal force and its tangents.
 
@@ -28,6 +30,16 @@ def cable_tangents(x_a: FloatArray, x_b: FloatArray, v_a: FloatArray, v_b: Float
         End positions [m] and velocities [m/s].
     rest_length, EA, etaA : (E,) float
         l0 [m], axial stiffness [N], axial viscous coefficient tau EA [N s].
+    step : ((E,) float, float), optional
+        ``(e_ref, inv_h)`` of an implicit step: the strain rate is ``(e - e_ref) inv_h``
+        (spring FORMULATION.md, S11) instead of (S2), so the velocities are not used and
+        ``C_bb`` is zero.
+    strain_shift : (E,) float, optional
+        The geometric stiffness ``N / l (I - t t^T)`` takes the axial force at the strain
+        shifted by it (the mixed Newton step, cosserat FORMULATION.md C55).
+    convex : bool
+        Leave a compressive force out of the geometric stiffness (the linear law), so every
+        block is positive semidefinite.
 
     Returns
     -------
@@ -43,7 +55,10 @@ def cable_tangents(x_a: FloatArray, x_b: FloatArray, v_a: FloatArray, v_b: Float
     t = d / length[:, None]
     dv = v_b - v_a
     strain = length / rest_length - 1.0
-    rate = np.einsum("ij,ij->i", dv, t) / rest_length
+    if step is None:
+        rate = np.einsum("ij,ij->i", dv, t) / rest_length
+    else:
+        rate = step_strain_rate(strain, step[0], step[1], tension_only)
     n = axial_force(strain, rate, EA, etaA, kink_strain, tension_only)
     if tension_only:
         _, slope = ramp(strain, kink_strain)
@@ -52,12 +67,24 @@ def cable_tangents(x_a: FloatArray, x_b: FloatArray, v_a: FloatArray, v_b: Float
     else:
         slope, curvature, active = np.ones_like(strain), np.zeros_like(strain), np.ones(len(n), bool)
     transverse = np.eye(3)[None] - t[:, :, None] * t[:, None, :]
-    rate_grad = np.einsum("eij,ej->ei", transverse, dv) / (length * rest_length)[:, None]
-    dn_dx = ((EA * slope + etaA * curvature * rate) / rest_length)[:, None] * t \
-        + (etaA * slope)[:, None] * rate_grad
+    if step is None:
+        rate_grad = np.einsum("eij,ej->ei", transverse, dv) / (length * rest_length)[:, None]
+        dn_dx = ((EA * slope + etaA * curvature * rate) / rest_length)[:, None] * t \
+            + (etaA * slope)[:, None] * rate_grad
+        C = ((etaA * slope * active) / rest_length)[:, None, None] * t[:, :, None] * t[:, None, :]
+    else:  # the rate moves with the strain: dN/de = EA r' + etaA (r'' rate + r' inv_h)
+        dn_dx = ((EA * slope + etaA * (curvature * rate + slope * step[1]))
+                 / rest_length)[:, None] * t
+        C = np.zeros((len(n), 3, 3))
     dn_dx *= active[:, None]
-    K = t[:, :, None] * dn_dx[:, None, :] + (n / length)[:, None, None] * transverse
-    C = ((etaA * slope * active) / rest_length)[:, None, None] * t[:, :, None] * t[:, None, :]
+    n_geometric = n
+    if strain_shift is not None:
+        shifted = strain + strain_shift
+        n_geometric = axial_force(shifted, rate if step is None else step_strain_rate(
+            shifted, step[0], step[1], tension_only), EA, etaA, kink_strain, tension_only)
+    if convex:
+        n_geometric = np.maximum(n_geometric, 0.0)
+    K = t[:, :, None] * dn_dx[:, None, :] + (n_geometric / length)[:, None, None] * transverse
     return n, n[:, None] * t, K, C
 
 

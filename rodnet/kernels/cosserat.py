@@ -30,7 +30,7 @@ from rodnet.kernels.cosserat_strain import (
     reference_strains as reference_strains, strain_matrix as strain_matrix,
     strain_rates_from_kinematics, strains as strains, strains_from_kinematics,
 )
-from rodnet.kernels import cosserat_compiled
+from rodnet.kernels import cosserat_compiled, tension
 from rodnet.kernels.cosserat_tangent import tangents
 from rodnet.kernels.so3 import FloatArray, dexp_inv_apply
 from rodnet.kernels.tension import REVERSED_STIFFNESS, axial_energy, axial_force, ramp
@@ -161,6 +161,53 @@ def strain_energy(
                                            tension_only, kink_strain)
 
 
+def step_potential(
+    # Model:
+    rest_length: FloatArray, reference_strain: FloatArray, stiffness: FloatArray, tau: FloatArray,
+    # State in:
+    x: FloatArray, q: FloatArray,
+    # Scalars:
+    tension_only: bool, kink_strain: float,
+    step: tuple[FloatArray, float] | None = None,
+) -> FloatArray:
+    """Incremental potential of each element over an implicit step (C53): (n,).
+
+    ``Le [Psi_axial + sum_k D_k (eps_k^2 + tau inv_h (eps_k - eps_ref_k)^2) / 2] + stop``, with
+    ``Psi_axial`` the clamped axial integral of :func:`rodnet.kernels.tension.step_potential`
+    and ``k`` over shear, torsion and bending: with the step's strain rates
+    (``step = (eps_ref, inv_h)``) the gradient of its sum is :func:`internal_force`. Without
+    ``step``: :func:`strain_energy`.
+    """
+    if step is None:
+        return strain_energy(rest_length, reference_strain, stiffness, x, q, tension_only,
+                             kink_strain)
+    return cosserat_compiled.step_potential(rest_length, reference_strain, stiffness, tau, x, q,
+                                            tension_only, kink_strain, step)
+
+
+def step_potential_numpy(
+    # Model:
+    rest_length: FloatArray, reference_strain: FloatArray, stiffness: FloatArray, tau: FloatArray,
+    # State in:
+    x: FloatArray, q: FloatArray,
+    # Scalars:
+    tension_only: bool, kink_strain: float,
+    step: tuple[FloatArray, float],
+) -> FloatArray:
+    """:func:`step_potential` with a step, in NumPy (the compiled kernel's reference)."""
+    reference, inv_h = step
+    eps, _ = cosserat_compiled.strains_and_rates(rest_length, reference_strain, x, q,
+                                                 np.zeros((len(rest_length), 12)))
+    D = stiffness[:, 1:]
+    bulk = 0.5 * rest_length * np.sum(D * (eps[:, 1:] ** 2 + (tau * inv_h)[:, None]
+                                           * (eps[:, 1:] - reference[:, 1:]) ** 2), axis=1)
+    psi = (eps[:, 3:] + reference_strain[:, 3:]) * rest_length[:, None]
+    stop = rotation_stop(psi, rest_length, stiffness[:, 1])[0]
+    return bulk + stop + tension.step_potential(eps[:, 0], reference[:, 0], inv_h, stiffness[:, 0],
+                                                tau * stiffness[:, 0], rest_length, kink_strain,
+                                                tension_only)
+
+
 def strain_energy_numpy(
     # Model:
     rest_length: FloatArray, reference_strain: FloatArray, stiffness: FloatArray,
@@ -215,15 +262,18 @@ def internal_force(
     x: FloatArray, q: FloatArray, velocity: FloatArray,
     # Scalars:
     tension_only: bool, kink_strain: float,
+    step: tuple[FloatArray, float] | None = None,
 ) -> FloatArray:
     """Internal force ``f_int = Le B^T [N; M]`` of each element (§Internal force): (n, 12).
 
     Translational rows are global forces, rotational rows body-frame moments; with ``tau = 0`` it
-    is the gradient of :func:`strain_energy` on the Lie algebra. Compiled: one loop over the
-    elements from the node state to the force.
+    is the gradient of :func:`strain_energy` on the Lie algebra. With ``step = (eps_ref (n, 6),
+    inv_h)`` the strain rates are an implicit step's, ``(eps - eps_ref) inv_h`` (C53), and the
+    force is the gradient of :func:`step_potential`. Compiled: one loop over the elements from
+    the node state to the force.
     """
     return cosserat_compiled.internal_force(rest_length, reference_strain, stiffness, tau, x, q,
-                                            velocity, tension_only, kink_strain)
+                                            velocity, tension_only, kink_strain, step)
 
 
 def internal_force_numpy(
@@ -247,8 +297,11 @@ def internal_force_and_tangents(
     x: FloatArray, q: FloatArray, velocity: FloatArray,
     # Scalars:
     tension_only: bool, kink_strain: float,
+    step: tuple[FloatArray, float] | None = None,
+    strain_shift: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Internal force with its stiffness and damping tangents (§Tangent).
+    """Internal force with its stiffness and damping tangents (§Tangent); ``step`` as in
+    :func:`internal_force` (the damping tangent is then zero).
 
     Compiled: the force loop of :func:`internal_force` keeps the kinematics and the constitutive
     state, and the tangent loop assembles from them; :func:`internal_force_and_tangents_numpy`
@@ -266,7 +319,8 @@ def internal_force_and_tangents(
         ``C_T = d f_int / d velocity = Le B^T D_v B``.
     """
     return cosserat_compiled.internal_force_and_tangents(
-        rest_length, reference_strain, stiffness, tau, x, q, velocity, tension_only, kink_strain)
+        rest_length, reference_strain, stiffness, tau, x, q, velocity, tension_only, kink_strain,
+        step, strain_shift)
 
 
 def internal_force_and_tangents_numpy(

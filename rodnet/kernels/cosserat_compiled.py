@@ -69,11 +69,22 @@ def internal_force(
     x: FloatArray, q: FloatArray, velocity: FloatArray,
     # Scalars:
     tension_only: bool, kink_strain: float,
+    step: tuple[FloatArray, float] | None = None,
 ) -> FloatArray:
-    """:func:`rodnet.kernels.cosserat.internal_force_numpy`, compiled: (n, 12)."""
+    """:func:`rodnet.kernels.cosserat.internal_force_numpy`, compiled: (n, 12). With ``step =
+    (eps_ref (n, 6), inv_h)`` the strain rates are ``(eps - eps_ref) inv_h`` (C53)."""
     arrays = _element_arguments(rest_length, reference_strain, stiffness, tau, x, q, velocity)
     return _internal_force_kernel(*arrays, bool(tension_only), float(kink_strain), _SERIES,
-                                  *_SWITCH_ANGLES)
+                                  *_SWITCH_ANGLES, *_step_arguments(step, arrays[0].shape[0]))
+
+
+def _step_arguments(step: tuple[FloatArray, float] | None, n: int) -> tuple[FloatArray, float]:
+    """``step_reference, inv_h`` of the compiled loops: no rows without a step."""
+    if step is None:
+        return np.empty((0, 6)), 0.0
+    reference = _as_float(step[0])
+    _check_shapes((reference.shape,), ((n, 6),))
+    return reference, float(step[1])
 
 
 def internal_force_and_tangents(
@@ -83,8 +94,13 @@ def internal_force_and_tangents(
     x: FloatArray, q: FloatArray, velocity: FloatArray,
     # Scalars:
     tension_only: bool, kink_strain: float,
+    step: tuple[FloatArray, float] | None = None,
+    strain_shift: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """:func:`rodnet.kernels.cosserat.internal_force_and_tangents_numpy`, compiled.
+    """:func:`rodnet.kernels.cosserat.internal_force_and_tangents_numpy`, compiled; ``step`` as
+    :func:`internal_force` (the damping tangent is then zero). With ``strain_shift`` (n, 6) the
+    geometric part of the stiffness takes the stress resultants at the strains shifted by it
+    (mixed Newton, C55).
 
     Returns the force (n, 12) and the stiffness and damping tangents (n, 12, 12).
     """
@@ -95,7 +111,10 @@ def internal_force_and_tangents(
     force = np.empty((n, 12))
     stiffness_out, damping_out = np.empty((n, 12, 12)), np.empty((n, 12, 12))
     _internal_force_andtangents_kernel(*arrays, bool(tension_only), float(kink_strain), _SERIES,
-                                        *_SWITCH_ANGLES, force, stiffness_out, damping_out)
+                                        *_SWITCH_ANGLES, *_step_arguments(step, n),
+                                        np.empty((0, 6)) if strain_shift is None else
+                                        _as_float(strain_shift), force, stiffness_out,
+                                        damping_out)
     return force, stiffness_out, damping_out
 
 
@@ -111,7 +130,44 @@ def strain_energy(
     arrays = tuple(_as_float(a) for a in (rest_length, reference_strain, stiffness, x, q))
     n = arrays[0].shape[0]
     _check_shapes(tuple(a.shape for a in arrays), ((n,), (n, 6), (n, 6), (n, 2, 3), (n, 2, 4)))
-    return _strain_energy_kernel(*arrays, bool(tension_only), float(kink_strain))
+    # the stored energy is the step potential of a step without damping (inv_h = 0)
+    return _step_potential_kernel(arrays[0], arrays[1], arrays[2], np.zeros(n), arrays[3],
+                                  arrays[4], np.zeros((n, 6)), 0.0, bool(tension_only),
+                                  float(kink_strain))
+
+
+def step_potential(
+    # Model:
+    rest_length: FloatArray, reference_strain: FloatArray, stiffness: FloatArray, tau: FloatArray,
+    # State in:
+    x: FloatArray, q: FloatArray,
+    # Scalars:
+    tension_only: bool, kink_strain: float,
+    step: tuple[FloatArray, float],
+) -> FloatArray:
+    """:func:`rodnet.kernels.cosserat.step_potential` with a step, compiled: (n,)."""
+    arrays = tuple(_as_float(a) for a in (rest_length, reference_strain, stiffness, tau, x, q))
+    n = arrays[0].shape[0]
+    _check_shapes(tuple(a.shape for a in arrays), ((n,), (n, 6), (n, 6), (n,), (n, 2, 3),
+                                                   (n, 2, 4)))
+    reference, inv_h = _step_arguments(step, n)
+    return _step_potential_kernel(*arrays, reference, inv_h, bool(tension_only),
+                                  float(kink_strain))
+
+
+def strains_and_rates(
+    # Model:
+    rest_length: FloatArray, reference_strain: FloatArray,
+    # State in:
+    x: FloatArray, q: FloatArray, velocity: FloatArray,
+) -> tuple[FloatArray, FloatArray]:
+    """Strains ``[Gamma, K]`` and their rates (n, 6) of every element (§Strains, §Strain rates)."""
+    arrays = tuple(_as_float(a) for a in (rest_length, reference_strain, x, q, velocity))
+    n = arrays[0].shape[0]
+    _check_shapes(tuple(a.shape for a in arrays), ((n,), (n, 6), (n, 2, 3), (n, 2, 4), (n, 12)))
+    strain, rate = np.empty((n, 6)), np.empty((n, 6))
+    _strains_and_rates_kernel(*arrays, _SERIES, *_SWITCH_ANGLES, strain, rate)
+    return strain, rate
 
 
 def stress_resultants(
@@ -296,20 +352,66 @@ def _tension(e, e_rate, EA, tau, kink):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True)
-def _axial_energy_density(e, EA, Le, tension_only, kink):  # pragma: no cover - compiled
-    """:func:`rodnet.kernels.tension.axial_energy` of one element."""
-    if not tension_only:
-        return 0.5 * EA * Le * (e * e)
-    ec = e if e > 0.0 else (-1.0 - e if e < -1.0 else 0.0)   # (C51) below e = -1
-    if e < -1.0:
-        EA = REVERSED_STIFFNESS * EA
-    if kink == 0.0:
-        integral = 0.5 * ec * ec
-    elif ec < kink:
-        integral = ec * ec * ec / (6.0 * kink)
+def _antiderivative(x, s_ref, EA, k, delta):  # pragma: no cover - compiled
+    """:func:`rodnet.kernels.tension._antiderivative` of one element (S12)."""
+    outer = EA * (0.5 * x * x) + k * (0.5 * x * x - s_ref * x)
+    if delta == 0.0:
+        return outer
+    if x < delta:
+        return ((0.5 * EA + k) * x * x * x / 3.0 - 0.5 * k * s_ref * x * x) / delta
+    return outer - 0.5 * EA * delta * x + EA * delta * delta / 6.0 - k * delta * delta / 6.0 \
+        + 0.5 * k * s_ref * delta
+
+
+@numba.njit(cache=True)
+def _clamped_integral(s, s_ref, EA, k, delta):  # pragma: no cover - compiled
+    """:func:`rodnet.kernels.tension._clamped_integral` of one element (S12), (S13)."""
+    if delta == 0.0:
+        threshold = max(0.0, k * s_ref / (EA + k))
     else:
-        integral = 0.5 * ec * ec - 0.5 * kink * ec + kink * kink / 6.0
-    return EA * Le * integral
+        s1 = k * s_ref / (0.5 * EA + k)
+        threshold = max(s1, 0.0) if s1 < delta else (0.5 * EA * delta + k * s_ref) / (EA + k)
+    return _antiderivative(max(s, threshold), s_ref, EA, k, delta) - \
+        _antiderivative(threshold, s_ref, EA, k, delta)
+
+
+@numba.njit(cache=True)
+def _axial_step_potential(e, e_ref, inv_h, EA, etaA, Le, tension_only,
+                          kink):  # pragma: no cover - compiled
+    """:func:`rodnet.kernels.tension.step_potential` of one element (S12), (C51)."""
+    k = etaA * inv_h
+    if not tension_only:
+        return Le * (0.5 * EA * e * e + 0.5 * k * (e - e_ref) * (e - e_ref))
+    value = _clamped_integral(e, max(e_ref, 0.0), EA, k, kink)
+    if e < -1.0:   # (C51): the mirrored law in s = -1 - e
+        value += _clamped_integral(-1.0 - e, max(-1.0 - e_ref, 0.0), REVERSED_STIFFNESS * EA,
+                                   REVERSED_STIFFNESS * k, kink)
+    return Le * value
+
+
+@numba.njit(cache=True)
+def _step_potential_kernel(rest_length, reference_strain, stiffness, tau, x, q, step_reference,
+                           inv_h, tension_only, kink):  # pragma: no cover - compiled
+    """Per element: ``Le [Psi_axial + sum_k D_k (eps_k^2 + tau inv_h (eps_k - eps_ref_k)^2) / 2]``
+    plus the rotation stop (C52), (C53)."""
+    n = rest_length.shape[0]
+    energy = np.empty(n)
+    for e in range(n):
+        (p0, p1, p2), _, (g0, g1, g2) = _kinematics(x, q, e)
+        Le = rest_length[e]
+        eps = (g0 / Le - reference_strain[e, 0], g1 / Le - reference_strain[e, 1],
+               g2 / Le - reference_strain[e, 2], p0 / Le - reference_strain[e, 3],
+               p1 / Le - reference_strain[e, 4], p2 / Le - reference_strain[e, 5])
+        bulk = 0.0
+        for k in range(1, 6):
+            d = eps[k] - step_reference[e, k]
+            bulk += stiffness[e, k] * (eps[k] * eps[k] + tau[e] * inv_h * d * d)
+        excess = _stop_excess(np.sqrt(p0 * p0 + p1 * p1 + p2 * p2))   # (C52)
+        energy[e] = (0.5 * Le * bulk + 0.5 * stiffness[e, 1] * Le * (excess * excess)
+                     + _axial_step_potential(eps[0], step_reference[e, 0], inv_h,
+                                             stiffness[e, 0], tau[e] * stiffness[e, 0], Le,
+                                             tension_only, kink))
+    return energy
 
 
 # ---------------------------------------------------------------------------------------------
@@ -381,9 +483,13 @@ def _resultants(stiffness, tau, rest_length, e, eps, rate, psi, phi, tension_onl
 
 @numba.njit(inline="always")
 def _state_and_force(rest_length, reference_strain, stiffness, tau, x, q, velocity, tension_only,
-                     kink, series, beta_angle, gamma_angle, force, psi_out, R_out, g_out,
-                     coefficients, constitutive, velocity9, monitor_out):  # pragma: no cover - compiled
+                     kink, series, beta_angle, gamma_angle, step_reference, inv_h, force, psi_out,
+                     R_out, g_out, coefficients, constitutive, velocity9,
+                     monitor_out):  # pragma: no cover - compiled
     """Internal force ``S [R_m N, P2 h - A M, P2^T h + A^T M]``, ``h = N x g``, per element.
+
+    When ``step_reference`` (n, 6) has ``n`` rows, the strain rates are an implicit step's,
+    ``(eps - step_reference) inv_h`` (C53), instead of those of the velocities.
 
     When ``psi_out`` has ``n`` rows, also stores what :func:`tangents_kernel` takes: ``psi``,
     ``R_m``, ``g``, ``[beta, beta'/phi, gamma, gamma'/phi]``, ``[stress, modulus,
@@ -392,10 +498,24 @@ def _state_and_force(rest_length, reference_strain, stiffness, tau, x, q, veloci
     """
     store = psi_out.shape[0] > 0
     store_monitor = monitor_out.shape[0] > 0
+    stepped = step_reference.shape[0] > 0
     for e in numba.prange(rest_length.shape[0]):  # elements are independent: split over threads
         ((p0, p1, p2), R, (g0, g1, g2), phi, beta, gamma, eps, rate,
          ((vd0, vd1, vd2), (a0, a1, a2), (b0, b1, b2))) = _strains_and_rates(
             rest_length, reference_strain, x, q, velocity, e, series, beta_angle, gamma_angle)
+        if stepped:  # the axial reference no lower than the kink (tension.step_strain_rate)
+            axial_reference = step_reference[e, 0]
+            if tension_only:
+                if eps[0] < -1.0:
+                    axial_reference = min(axial_reference, -1.0)
+                else:
+                    axial_reference = max(axial_reference, 0.0)
+            rate = ((eps[0] - axial_reference) * inv_h,
+                    (eps[1] - step_reference[e, 1]) * inv_h,
+                    (eps[2] - step_reference[e, 2]) * inv_h,
+                    (eps[3] - step_reference[e, 3]) * inv_h,
+                    (eps[4] - step_reference[e, 4]) * inv_h,
+                    (eps[5] - step_reference[e, 5]) * inv_h)
         te = tau[e]
         (N0, N1, N2, M0, M1, M2), D0, V0 = _resultants(
             stiffness, tau, rest_length, e, eps, rate, (p0, p1, p2), phi, tension_only, kink)
@@ -444,30 +564,36 @@ def _state_and_force(rest_length, reference_strain, stiffness, tau, x, q, veloci
 
 @numba.njit(cache=True, parallel=True)
 def _internal_force_kernel(rest_length, reference_strain, stiffness, tau, x, q, velocity,
-                           tension_only, kink, series, beta_angle,
-                           gamma_angle):  # pragma: no cover - compiled
+                           tension_only, kink, series, beta_angle, gamma_angle, step_reference,
+                           inv_h):  # pragma: no cover - compiled
     n = rest_length.shape[0]
     force = np.empty((n, 12))
     none1, none2, none3 = np.empty((0, 3)), np.empty((0, 3, 3)), np.empty((0, 4))
     _state_and_force(rest_length, reference_strain, stiffness, tau, x, q, velocity, tension_only,
-                     kink, series, beta_angle, gamma_angle, force, none1, none2, none1, none3,
-                     np.empty((0, 18)), np.empty((0, 9)), np.empty((0, 2)))
+                     kink, series, beta_angle, gamma_angle, step_reference, inv_h, force, none1,
+                     none2, none1, none3, np.empty((0, 18)), np.empty((0, 9)), np.empty((0, 2)))
     return force
 
 
 @numba.njit(cache=True, parallel=True)
 def _internal_force_andtangents_kernel(rest_length, reference_strain, stiffness, tau, x, q,
                                         velocity, tension_only, kink, series, beta_angle,
-                                        gamma_angle, force, stiffness_out,
-                                        damping_out):  # pragma: no cover - compiled
+                                        gamma_angle, step_reference, inv_h, strain_shift, force,
+                                        stiffness_out, damping_out):  # pragma: no cover - compiled
     n = rest_length.shape[0]
     psi, R_m, g = np.empty((n, 3)), np.empty((n, 3, 3)), np.empty((n, 3))
     coefficients, constitutive, velocity9 = np.empty((n, 4)), np.empty((n, 18)), np.empty((n, 9))
     _state_and_force(rest_length, reference_strain, stiffness, tau, x, q, velocity, tension_only,
-                     kink, series, beta_angle, gamma_angle, force, psi, R_m, g, coefficients,
-                     constitutive, velocity9, np.empty((0, 2)))
+                     kink, series, beta_angle, gamma_angle, step_reference, inv_h, force, psi,
+                     R_m, g, coefficients, constitutive, velocity9, np.empty((0, 2)))
+    if strain_shift.shape[0] > 0:  # the geometric stress of the mixed Newton step (C55)
+        rate_factor = inv_h if step_reference.shape[0] > 0 else 0.0
+        for e in range(n):
+            for k in range(6):
+                constitutive[e, k] += (constitutive[e, 6 + k] + rate_factor
+                                       * constitutive[e, 12 + k]) * strain_shift[e, k]
     tangents_kernel(psi, R_m, g, coefficients, constitutive, velocity9, 1.0 / rest_length,
-                     stiffness_out, damping_out)
+                    inv_h if step_reference.shape[0] > 0 else 0.0, stiffness_out, damping_out)
 
 
 @numba.njit(cache=True)
@@ -487,25 +613,14 @@ def _section_state_kernel(rest_length, reference_strain, stiffness, tau, x, q, v
 
 
 @numba.njit(cache=True)
-def _strain_energy_kernel(rest_length, reference_strain, stiffness, x, q, tension_only,
-                          kink):  # pragma: no cover - compiled
-    """``Le [EA Rint(Gamma_0) + (GA2 Gamma_1^2 + GA3 Gamma_2^2 + K^T C_M K) / 2]`` (§Energy)
-    plus the rotation stop's ``GA2 Le (phi - phi_s)^2 / 2`` (C52)."""
-    n = rest_length.shape[0]
-    energy = np.empty(n)
-    for e in range(n):
-        (p0, p1, p2), _, (g0, g1, g2) = _kinematics(x, q, e)
-        Le = rest_length[e]
-        eps = (g0 / Le - reference_strain[e, 0], g1 / Le - reference_strain[e, 1],
-               g2 / Le - reference_strain[e, 2], p0 / Le - reference_strain[e, 3],
-               p1 / Le - reference_strain[e, 4], p2 / Le - reference_strain[e, 5])
-        bulk = 0.0
-        for k in range(1, 6):
-            bulk += stiffness[e, k] * (eps[k] * eps[k])
-        excess = _stop_excess(np.sqrt(p0 * p0 + p1 * p1 + p2 * p2))   # (C52)
-        energy[e] = (0.5 * Le * bulk + 0.5 * stiffness[e, 1] * Le * (excess * excess)
-                     + _axial_energy_density(eps[0], stiffness[e, 0], Le, tension_only, kink))
-    return energy
+def _strains_and_rates_kernel(rest_length, reference_strain, x, q, velocity, series, beta_angle,
+                              gamma_angle, strain_out, rate_out):  # pragma: no cover - compiled
+    for e in range(rest_length.shape[0]):
+        _, _, _, _, _, _, eps, rate, _ = _strains_and_rates(
+            rest_length, reference_strain, x, q, velocity, e, series, beta_angle, gamma_angle)
+        for k in range(6):
+            strain_out[e, k] = eps[k]
+            rate_out[e, k] = rate[k]
 
 
 @numba.njit(cache=True)
@@ -606,8 +721,8 @@ def rod_forces(x, quat, v, W, rods, xe, qe, ve, force, monitor):  # pragma: no c
                          rods.offset_R, xe, qe, ve)
     _state_and_force(rods.rest_length, rods.reference_strain, rods.stiffness, rods.tau, xe, qe,
                      ve, rods.tension_only, rods.kink, rods.series, rods.beta_angle,
-                     rods.gamma_angle, force, none3, none33, none3, none4, none18, none9,
-                     monitor)
+                     rods.gamma_angle, np.empty((0, 6)), 0.0, force, none3, none33, none3, none4,
+                     none18, none9, monitor)
     peak, phi = 0.0, 0.0
     for e in range(monitor.shape[0]):
         peak = max(peak, monitor[e, 0])
@@ -705,12 +820,14 @@ def _midpoint_derivative(psi, w, beta, beta_d, out):  # pragma: no cover - compi
 
 
 @numba.njit(cache=True)
-def tangents_kernel(psi, R_m, g, coefficients, constitutive, velocity9, inv_le,
+def tangents_kernel(psi, R_m, g, coefficients, constitutive, velocity9, inv_le, inv_h,
                      stiffness_out, damping_out):  # pragma: no cover - compiled
     """Per element: ``K9 = B9^T (D B9 + D_v U9 L9) / Le + Q9 L9``, ``C9 = B9^T D_v B9 / Le``.
 
     ``coefficients`` (n, 4) = ``[beta, beta'/phi, gamma, gamma'/phi]``; ``constitutive`` (n, 18) =
-    ``[stress, modulus, viscous_modulus]``.
+    ``[stress, modulus, viscous_modulus]``. With ``inv_h > 0`` the strain rates are those of an
+    implicit step, ``(eps - eps_ref) inv_h`` (C53): they move with the strains, so
+    ``K9 = B9^T (D + inv_h D_v) B9 / Le + Q9 L9`` and ``C9 = 0``.
     """
     # scratch reused by every element; blocks that are never written stay zero
     S, A, P2, G = np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3))
@@ -750,7 +867,7 @@ def tangents_kernel(psi, R_m, g, coefficients, constitutive, velocity9, inv_le,
         # without viscosity (D_v = 0) the velocity terms (U9) and the damping tangent vanish
         viscous = False
         for k in range(6):
-            if constitutive[e, 12 + k] != 0.0:
+            if constitutive[e, 12 + k] != 0.0 and inv_h == 0.0:
                 viscous = True
         # derivatives of B9 at fixed stress (Q9) and fixed velocity (U9) (geometric_factors)
         for k in range(3):
@@ -790,6 +907,7 @@ def tangents_kernel(psi, R_m, g, coefficients, constitutive, velocity9, inv_le,
         # K9 = B9^T Z9 + Q9 L9 with Z9 = (D B9 + D_v U9 L9) / Le;  C9 = B9^T D_v B9 / Le
         for i in range(6):
             a, b = constitutive[e, 6 + i] * inv_le[e], constitutive[e, 12 + i] * inv_le[e]
+            a += inv_h * b   # 0 unless the rates are a step's
             for j in range(9):
                 Z9[i, j] = a * B9[i, j] + b * G_u[i, j] if viscous else a * B9[i, j]
         # the rotation stop (C52), k_s = GA2 Le: Z9[3:] += H_s B9[3:], with

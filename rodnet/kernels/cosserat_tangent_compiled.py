@@ -34,5 +34,5 @@ def tangents(
     # contiguous inputs keep to one compiled specialisation
     tangents_kernel(np.ascontiguousarray(psi), np.ascontiguousarray(R_m), np.ascontiguousarray(g),
                      coefficients, constitutive, np.ascontiguousarray(velocity9), 1.0 / rest_length,
-                     stiffness_out, damping_out)
+                     0.0, stiffness_out, damping_out)
     return stiffness_out, damping_out

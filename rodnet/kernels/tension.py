@@ -81,3 +81,81 @@ def axial_energy(strain: FloatArray, EA: FloatArray, rest_length: FloatArray,
     else:
         integral = np.where(e < d, e**3 / (6.0 * d), 0.5 * e * e - 0.5 * d * e + d * d / 6.0)
     return np.where(strain < -1.0, REVERSED_STIFFNESS, 1.0) * EA * rest_length * integral
+
+
+def step_strain_rate(strain: FloatArray, reference: FloatArray, inv_h: float,
+                     tension_only: bool) -> FloatArray:
+    """The strain rate of an implicit step, ``(e - e_ref) inv_h`` (S11), for the law of
+    :func:`axial_force`.
+
+    With the tension-only law the reference is taken no lower than the kink, ``max(e_ref, 0)``
+    (below ``e = -1``: no higher than ``-1``, the mirrored kink): only the motion while taut
+    is damped. A segment that was slack at the start of the step then starts pulling from
+    zero (``N`` is continuous in ``e``); with ``e_ref`` itself its first taut step would jump to
+    ``etaA |e_ref| inv_h`` at the kink, which the step's Newton solve cannot resolve. The
+    difference is one step's damping impulse of a segment that snaps taut: it vanishes as the
+    step shrinks.
+    """
+    if not tension_only:
+        return (strain - reference) * inv_h
+    clipped = np.where(strain < -1.0, np.minimum(reference, -1.0), np.maximum(reference, 0.0))
+    return (strain - clipped) * inv_h
+
+
+def step_potential(strain: FloatArray, strain_reference: FloatArray, inv_h: float,
+                   EA: FloatArray, etaA: FloatArray, rest_length: FloatArray, kink_strain: float,
+                   tension_only: bool) -> FloatArray:
+    """Incremental potential [J] of each segment over an implicit step, (S12).
+
+    With the step's strain rate of :func:`step_strain_rate` (S11), the axial force of
+    :func:`axial_force` is ``N = dPsi/de / l0``: ``Psi`` is the stored energy (S6) plus the
+    step's dissipation potential, and is convex in ``e`` for the tension-only law (its ``N``
+    never falls as ``e`` grows). ``inv_h = 0`` gives the stored energy (S6).
+
+    Parameters
+    ----------
+    strain, strain_reference : (E,) float
+        ``e`` and ``e_ref``.
+    inv_h : float
+        1 / h_bar [1/s] of the scheme (S11).
+    EA, etaA, rest_length : (E,) float
+    kink_strain : float
+    tension_only : bool
+    """
+    k = etaA * inv_h
+    if not tension_only:
+        return rest_length * (0.5 * EA * strain**2 + 0.5 * k * (strain - strain_reference)**2)
+    # references no lower than the kink (step_strain_rate)
+    tension = _clamped_integral(strain, np.maximum(strain_reference, 0.0), EA, k, kink_strain)
+    below = strain < -1.0   # (C51): the mirrored law in s = -1 - e, rate ds/dt = -de/dt
+    if below.any():
+        tension = tension + np.where(below, _clamped_integral(
+            -1.0 - strain, np.maximum(-1.0 - strain_reference, 0.0), REVERSED_STIFFNESS * EA,
+            REVERSED_STIFFNESS * k, kink_strain), 0.0)
+    return rest_length * tension
+
+
+def _clamped_integral(s: FloatArray, s_ref: FloatArray, EA: FloatArray, k: FloatArray,
+                      delta: float) -> FloatArray:
+    """``integral of max(0, f(x)) dx`` from ``-inf`` to ``s``, ``f = EA r + k r' (x - s_ref)``,
+    (S12): ``f`` is positive exactly above the threshold ``s*`` (S13), so the integral is
+    ``F(max(s, s*)) - F(s*)`` with ``F`` an antiderivative of ``f`` on ``x > 0``."""
+    if delta == 0.0:
+        threshold = np.maximum(0.0, k * s_ref / (EA + k))
+    else:
+        s1 = k * s_ref / (0.5 * EA + k)
+        s2 = (0.5 * EA * delta + k * s_ref) / (EA + k)
+        threshold = np.where(s1 < delta, np.maximum(s1, 0.0), s2)
+    return _antiderivative(np.maximum(s, threshold), s_ref, EA, k, delta) - \
+        _antiderivative(threshold, s_ref, EA, k, delta)
+
+
+def _antiderivative(x: FloatArray, s_ref: FloatArray, EA: FloatArray, k: FloatArray,
+                    delta: float) -> FloatArray:
+    """``F(x)`` for ``x >= 0``, ``F(0) = 0``, ``F' = EA r(x) + k r'(x) (x - s_ref)``, (S12)."""
+    outer = EA * (0.5 * x * x) + k * (0.5 * x * x - s_ref * x)
+    if delta == 0.0:
+        return outer
+    inner = ((0.5 * EA + k) * x**3 / 3.0 - 0.5 * k * s_ref * x * x) / delta
+    shift = EA * delta * delta / 6.0 - k * delta * delta / 6.0 + 0.5 * k * s_ref * delta
+    return np.where(x < delta, inner, outer - 0.5 * EA * delta * x + shift)

@@ -25,8 +25,8 @@ from rodnet.kernels.cable import cable_tangents, element_blocks
 from rodnet.kernels.cosserat_compiled import RodElements, no_rod_elements
 from rodnet.kernels.hinge import Hinges, hinge_energy, hinge_force, hinge_frequency, no_hinges
 from rodnet.kernels.segments import Segments
-from rodnet.kernels.tension import axial_energy, axial_force
-from rodnet.state import Configuration
+from rodnet.kernels.tension import axial_energy, axial_force, step_potential, step_strain_rate
+from rodnet.state import Configuration, Linearization, StepRate
 from rodnet.topology import Structure
 
 FloatArray = NDArray[np.float64]
@@ -98,6 +98,9 @@ class LumpedModel:
 
     n_rot = 0
     """No rotation nodes."""
+    potential_exact = True
+    """``g`` with a step rate is the gradient of :meth:`potential` (no hinges: they run
+    explicitly)."""
 
     # --- segment kinematics and forces ---------------------------------------------------
 
@@ -110,10 +113,17 @@ class LumpedModel:
         rate = np.einsum("ij,ij->i", v[b] - v[a], t) / self.rest_length
         return length, t, length / self.rest_length - 1.0, rate
 
-    def tension(self, x: FloatArray, v: FloatArray) -> FloatArray:
-        """Axial force of every segment [N], (E,)."""
-        _, _, e, rate = self.segment_kinematics(x, v)
-        return axial_force(e, rate, self.EA, self.etaA, self.kink_strain, self.tension_only)
+    def tension(self, x: FloatArray, v: FloatArray, rate: StepRate | None = None) -> FloatArray:
+        """Axial force of every segment [N], (E,); with ``rate``, at the step's strain rate (S11)."""
+        return self._tension_and_direction(x, v, rate)[0]
+
+    def _tension_and_direction(self, x: FloatArray, v: FloatArray,
+                               rate: StepRate | None) -> tuple[FloatArray, FloatArray]:
+        _, t, e, e_rate = self.segment_kinematics(x, v)
+        if rate is not None:
+            e_rate = step_strain_rate(e, rate.reference, rate.inv_h,  # type: ignore[arg-type]
+                                      self.tension_only)
+        return axial_force(e, e_rate, self.EA, self.etaA, self.kink_strain, self.tension_only), t
 
     def external_force(self, t: float) -> FloatArray:
         """Gravity plus ramped dead loads at time ``t`` [N], (N, 3)."""
@@ -123,11 +133,11 @@ class LumpedModel:
         np.add.at(f, self.load_nodes, scale[:, None] * self.load_force)
         return f
 
-    def segment_force(self, x: FloatArray, v: FloatArray) -> FloatArray:
+    def segment_force(self, x: FloatArray, v: FloatArray,
+                      rate: StepRate | None = None) -> FloatArray:
         """Force the segments (S7) and the bending hinges (K3), (K4) exert on every node [N],
-        (N, 3)."""
-        _, direction, e, rate = self.segment_kinematics(x, v)
-        n = axial_force(e, rate, self.EA, self.etaA, self.kink_strain, self.tension_only)
+        (N, 3); with ``rate``, the segments' at the step's strain rate (S11)."""
+        n, direction = self._tension_and_direction(x, v, rate)
         f = self._incidence @ (n[:, None] * direction)
         if len(self.hinges.nodes):
             h = self.hinges
@@ -186,25 +196,52 @@ class LumpedModel:
         return [(3 * self.segments[:, :, None] + np.arange(3)).reshape(-1, 6)]
 
     def forces(self, q: Configuration, v: FloatArray, t: float, load_factor: float,
-               need_matrices: bool) -> tuple[FloatArray, list[FloatArray], list[FloatArray]]:
+               need_matrices: bool, rate: StepRate | None = None,
+               linearization: Linearization | None = None,
+               ) -> tuple[FloatArray, list[FloatArray], list[FloatArray]]:
         """``g = f_int - f_ext`` (n_dof,) for flat velocities ``v`` (n_dof,) and, when
         ``need_matrices``, the blocks (E, 6, 6) of ``K = dg/dx`` and ``C = dg/dv`` over the
-        segments (cable tangents, no load stiffness)."""
+        segments (cable tangents, no load stiffness). With ``rate`` the strain rates are the
+        step's (S11): ``g`` does not depend on ``v`` and is the gradient of :meth:`potential`.
+        ``linearization``: its strain shift moves the geometric stiffness; convex leaves
+        compression (the linear law) out of it."""
         x, vv = q.x, v.reshape(-1, 3)
         if not need_matrices:
-            f = self.segment_force(x, vv) + load_factor * self.external_force(t)
+            f = self.segment_force(x, vv, rate) + load_factor * self.external_force(t)
             return -f.ravel(), [], []
         if len(self.hinges.nodes):  # the model table refuses implicit and static Kirchhoff runs
             raise NotImplementedError("bending hinges have no tangent: Kirchhoff threads are "
                                       "integrated explicitly")
         a, b = self.segments[:, 0], self.segments[:, 1]
+        step = None if rate is None else (rate.reference, rate.inv_h)
+        lin = Linearization() if linearization is None else linearization
         n, g_b, K_bb, C_bb = cable_tangents(x[a], x[b], vv[a], vv[b], self.rest_length, self.EA,
-                                            self.etaA, self.kink_strain, self.tension_only)
+                                            self.etaA, self.kink_strain, self.tension_only, step,
+                                            lin.strain_shift, lin.convex)
         g = np.zeros((self.structure.n_nodes, 3))
         np.add.at(g, b, g_b)
         np.add.at(g, a, -g_b)
         g -= load_factor * self.external_force(t)
         return g.ravel(), [element_blocks(K_bb)], [element_blocks(C_bb)]
+
+    def strains(self, q: Configuration, v: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Segment strains ``e`` and their rates (E,), (S2): what a :class:`StepRate` refers to."""
+        _, _, e, e_rate = self.segment_kinematics(q.x, v.reshape(-1, 3))
+        return e, e_rate
+
+    def potential(self, q: Configuration, t: float, load_factor: float,
+                  rate: StepRate | None) -> float:
+        """The segments' incremental potential (S12) (without ``rate``: the stored energy (S6))
+        plus the potential of the dead loads and gravity [J]: ``g`` of :meth:`forces` with the
+        same ``rate`` is its gradient."""
+        if len(self.hinges.nodes):
+            raise NotImplementedError("bending hinges have no step potential")
+        d = q.x[self.segments[:, 1]] - q.x[self.segments[:, 0]]
+        e = np.sqrt(np.einsum("ij,ij->i", d, d)) / self.rest_length - 1.0
+        reference, inv_h = (e, 0.0) if rate is None else (rate.reference, rate.inv_h)
+        stored = step_potential(e, reference, inv_h, self.EA, self.etaA,  # type: ignore[arg-type]
+                                self.rest_length, self.kink_strain, self.tension_only)
+        return float(stored.sum()) - load_factor * float(np.sum(self.external_force(t) * q.x))
 
     def retract(self, q: Configuration, dq: FloatArray) -> Configuration:
         return Configuration(q.x + dq.reshape(-1, 3), q.quat)

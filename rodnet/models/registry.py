@@ -34,7 +34,7 @@ from rodnet.models.system import ThreadSystem
 from rodnet.state import State
 from rodnet.topology import Structure, build_structure
 
-IMPLICIT = ("generalized-alpha", "backward-euler", "midpoint")
+IMPLICIT = ("bdf2", "generalized-alpha", "backward-euler", "midpoint")
 """The implicit integrators."""
 
 MIN_STEP_FRACTION = 1e-6

@@ -31,7 +31,7 @@ from rodnet.kernels.cosserat_compiled import RodElements
 from rodnet.kernels.explicit import BodyMass, ExplicitProblem, Loads, Nodes, Rotations, StepControl
 from rodnet.kernels.hinge import Hinges
 from rodnet.kernels.segments import Segments
-from rodnet.state import BodyMotion, Configuration, State
+from rodnet.state import BodyMotion, Configuration, Linearization, State, StepRate
 from rodnet.topology import Structure
 
 FloatArray = NDArray[np.float64]
@@ -58,9 +58,27 @@ class ThreadModel(Protocol):
     """DOF indices of the blocks of :meth:`forces`, one (E_g, k_g) array per group."""
 
     def forces(self, q: Configuration, v: FloatArray, t: float, load_factor: float,
-               need_matrices: bool) -> tuple[FloatArray, list[FloatArray], list[FloatArray]]:
-        """``g`` (n_dof,) and, when asked, the blocks of ``K`` and ``C``, one per group."""
+               need_matrices: bool, rate: StepRate | None = None,
+               linearization: Linearization | None = None,
+               ) -> tuple[FloatArray, list[FloatArray], list[FloatArray]]:
+        """``g`` (n_dof,) and, when asked, the blocks of ``K`` and ``C``, one per group; with
+        ``rate``, damping acts at the step's strain rates (:class:`~rodnet.state.StepRate`);
+        ``linearization`` says how the blocks depart from the exact tangent."""
         ...
+
+    def strains(self, q: Configuration, v: FloatArray) -> tuple[Any, Any]:
+        """The strains the damping acts on and their rates at ``q``, ``v``."""
+        ...
+
+    def potential(self, q: Configuration, t: float, load_factor: float,
+                  rate: StepRate | None) -> float:
+        """The function whose gradient is ``g`` with ``rate`` (up to the terms
+        :attr:`potential_exact` says are left out) [J]."""
+        ...
+
+    potential_exact: bool
+    """Whether the gradient of :meth:`potential` is exactly ``g`` with a rate (no term that
+    depends on the velocities otherwise, such as gyroscopic forces)."""
 
     def retract(self, q: Configuration, dq: FloatArray) -> Configuration: ...
 
@@ -157,8 +175,14 @@ class ThreadSystem:
         return SparsityPattern(groups, self.n_dof, self.free)
 
     def _forces(self, q: Configuration, v: FloatArray, t: float, load_factor: float,
-                need_matrices: bool) -> tuple[FloatArray, list[FloatArray], list[FloatArray]]:
-        g, K_blocks, C_blocks = self.model.forces(q, v, t, load_factor, need_matrices)
+                need_matrices: bool, rate: StepRate | None = None,
+                linearization: Linearization | None = None,
+                ) -> tuple[FloatArray, list[FloatArray], list[FloatArray]]:
+        if self.model_has_strains:
+            g, K_blocks, C_blocks = self.model.forces(q, v, t, load_factor, need_matrices, rate,
+                                                      linearization)
+        else:  # a model without strains: no step rates, exact tangents only
+            g, K_blocks, C_blocks = self.model.forces(q, v, t, load_factor, need_matrices)
         if self.contact is None:
             return g, K_blocks, C_blocks
         n3 = 3 * self.model.n_nodes
@@ -171,25 +195,76 @@ class ThreadSystem:
         return g, [*K_blocks, -d_x], [*C_blocks, -d_v]
 
     def generalized_force(self, q: Configuration, v: FloatArray, t: float,
-                          load_factor: float = 1.0) -> FloatArray:
-        return self._forces(q, v, t, load_factor, need_matrices=False)[0]
+                          load_factor: float = 1.0, rate: StepRate | None = None) -> FloatArray:
+        return self._forces(q, v, t, load_factor, False, rate)[0]
 
     def tangents(self, q: Configuration, v: FloatArray, t: float, load_factor: float = 1.0,
+                 rate: StepRate | None = None, linearization: Linearization | None = None,
                  ) -> tuple[FloatArray, sp.csr_matrix, sp.csr_matrix]:
-        g, K_blocks, C_blocks = self._forces(q, v, t, load_factor, need_matrices=True)
+        g, K_blocks, C_blocks = self._forces(q, v, t, load_factor, True, rate, linearization)
         return g, self._pattern.matrix(K_blocks), self._pattern.matrix(C_blocks)
 
     def iteration_matrix(self, q: Configuration, v: FloatArray, t: float, dq: FloatArray,
                          diagonal: FloatArray, a: float, b: float, load_factor: float = 1.0,
+                         rate: StepRate | None = None,
+                         linearization: Linearization | None = None,
                          ) -> tuple[FloatArray, IterationMatrix]:
         """``g`` (n_dof,) and ``diag(diagonal) + a C + b K T(dq)`` on the free DOFs, in the
         storage its LU takes (band, dense or CSR: :meth:`SparsityPattern.iteration_matrix`)."""
-        g, K_blocks, C_blocks = self._forces(q, v, t, load_factor, need_matrices=True)
+        g, K_blocks, C_blocks = self._forces(q, v, t, load_factor, True, rate, linearization)
         return g, self._pattern.iteration_matrix(diagonal, a, C_blocks, b, K_blocks,
                                                  self._triple_transforms(dq))
 
     def retract(self, q: Configuration, dq: FloatArray) -> Configuration:
         return self.model.retract(q, dq)
+
+    @cached_property
+    def model_has_strains(self) -> bool:
+        """Whether the model reports strains (:meth:`ThreadModel.strains`) and so takes step
+        rates and linearizations in :meth:`ThreadModel.forces`; a model without them (such as
+        a plain spring chain) gets exact tangents and damping at the velocities' rates."""
+        return hasattr(self.model, "strains")
+
+    def strains(self, q: Configuration, v: FloatArray) -> tuple[Any, Any]:
+        """The model's strains and their rates (:meth:`ThreadModel.strains`); ``(None, None)``
+        for a model without them."""
+        if not self.model_has_strains:
+            return None, None
+        return self.model.strains(q, v)
+
+    def step_rate(self, q: Configuration, v: FloatArray, h_bar: float) -> StepRate | None:
+        """The :class:`~rodnet.state.StepRate` of a step that moves the configuration as
+        ``q* o exp(h_bar (v1 - v*))`` from ``q* = q``, ``v* = v``: reference strains
+        ``e(q) - h_bar de/dt(q, v)``, ``inv_h = 1 / h_bar``; None without step rates."""
+        strain, rate = self.strains(q, v)
+        return None if strain is None else StepRate(strain - h_bar * rate, 1.0 / h_bar)
+
+    def potential(self, q: Configuration, t: float, load_factor: float = 1.0,
+                  rate: StepRate | None = None) -> float | None:
+        """The model's potential (:meth:`ThreadModel.potential`) [J]; None for a model without
+        one. Contact adds no term (:attr:`potential_exact` is then False)."""
+        if not hasattr(self.model, "potential"):
+            return None
+        return self.model.potential(q, t, load_factor, rate)
+
+    def mechanical_energy(self, q: Configuration, v: FloatArray, t: float) -> float | None:
+        """Kinetic energy plus the potential of the internal and external forces at time ``t``
+        and the energy in the contact springs [J]; None where the forces have no potential
+        (dead moments, a model without one)."""
+        if not bool(getattr(self.model, "potential_exact", False)):
+            return None
+        stored = self.potential(q, t)
+        if stored is None:
+            return None
+        energy = 0.5 * float(np.einsum("i,i,i", self.dof_mass, v, v)) + stored
+        if self.contact is not None:
+            energy += self.contact.energy(q.x, self._start)["contact"]
+        return energy
+
+    @property
+    def potential_exact(self) -> bool:
+        """Whether ``g`` with a step rate is exactly the gradient of :meth:`potential`."""
+        return self.contact is None and bool(getattr(self.model, "potential_exact", False))
 
     def times_tangent_operator(self, K: sp.csr_matrix, dq: FloatArray) -> sp.csr_matrix:
         """``K T(dq)`` without forming ``T`` (the same pattern as ``K``)."""

@@ -22,13 +22,14 @@ from rodnet.assembly import assemble_vector
 from rodnet.errors import SimulationFailed
 from rodnet.kernels import explicit as kx
 from rodnet.kernels import so3, so3_compiled
+from rodnet.kernels.convex import convex_blocks
 from rodnet.kernels.cosserat import (internal_force, internal_force_and_tangents, section_state,
-                                     strain_energy)
-from rodnet.kernels.cosserat_compiled import SERIES_ARGUMENTS, RodElements
+                                     step_potential, strain_energy)
+from rodnet.kernels.cosserat_compiled import SERIES_ARGUMENTS, RodElements, strains_and_rates
 from rodnet.kernels.cosserat_strain import kinematics
 from rodnet.kernels.hinge import Hinges, no_hinges
 from rodnet.kernels.segments import Segments
-from rodnet.state import Configuration
+from rodnet.state import Configuration, Linearization, StepRate
 
 FloatArray = NDArray[np.float64]
 
@@ -212,21 +213,28 @@ class CosseratModel:
         """DOFs of the blocks of :meth:`forces`: elements (E, 12), rotation nodes (R, 3)."""
         return [self.element_dofs, 3 * (self.n_nodes + np.arange(self.n_rot))[:, None] + np.arange(3)]
 
-    def forces(self, q: Configuration, v: FloatArray, t: float, load_factor: float,
-               need_matrices: bool) -> tuple[FloatArray, list[FloatArray], list[FloatArray]]:
-        """``g`` (n_dof,) and, when ``need_matrices``, the blocks of K and of C in the order of
-        :attr:`groups`: ``[element (E, 12, 12), rotation node (R, 3, 3)]`` (else empty)."""
-        return self._forces(q, v, t, load_factor, need_matrices)
+    @property
+    def potential_exact(self) -> bool:
+        """Whether :meth:`potential` accounts for every force but the gyroscopic ones (small
+        velocity terms): not with dead moments, which have no potential on the rotations."""
+        return not np.any(self.load_moment)
 
-    def _forces(self, q: Configuration, v: FloatArray, t: float, load_factor: float,
-                need_matrices: bool) -> tuple[FloatArray, list[FloatArray], list[FloatArray]]:
+    def forces(self, q: Configuration, v: FloatArray, t: float, load_factor: float,
+               need_matrices: bool, rate: StepRate | None = None,
+               linearization: Linearization | None = None,
+               ) -> tuple[FloatArray, list[FloatArray], list[FloatArray]]:
         """``g`` (n_dof,) and, when ``need_matrices``, the blocks of K and of C in the order of
-        the pattern's groups: ``[element (E, 12, 12), rotation node (R, 3, 3)]`` (else empty)."""
+        :attr:`groups`: ``[element (E, 12, 12), rotation node (R, 3, 3)]`` (else empty); with
+        ``rate``, the elements' damping at the step's strain rates (C53)."""
         x, quat, ve = self._element_state(q, v)
+        step = None if rate is None else (rate.reference, rate.inv_h)
         args = (self.rest_length, self.reference_strain, self.stiffness, self.tau, x, quat, ve,
-                self.tension_only, self.kink_strain)
+                self.tension_only, self.kink_strain, step)
         if need_matrices:
-            f_el, K_el, C_el = internal_force_and_tangents(*args)
+            shift = None if linearization is None else linearization.strain_shift
+            f_el, K_el, C_el = internal_force_and_tangents(*args, shift)
+            if linearization is not None and linearization.convex:
+                K_el = convex_blocks(K_el)
         else:
             f_el, K_el, C_el = internal_force(*args), None, None
         if self.end_offset is not None:  # back to the rotation nodes' frames
@@ -246,6 +254,25 @@ class CosseratModel:
         if len(body_moment):
             np.add.at(load_block, self._load_rot, -so3.hat(body_moment))
         return g, [K_el, load_block], [C_el, d_gyro]
+
+    def strains(self, q: Configuration, v: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Element strains ``[Gamma, K]`` and their rates (E, 6): what a
+        :class:`~rodnet.state.StepRate` refers to."""
+        x, quat, ve = self._element_state(q, v)
+        return strains_and_rates(self.rest_length, self.reference_strain, x, quat, ve)
+
+    def potential(self, q: Configuration, t: float, load_factor: float,
+                  rate: StepRate | None) -> float:
+        """The elements' incremental potential (C53) (without ``rate``: their strain energy)
+        minus the work of gravity and the dead forces [J]; the dead moments and gyroscopic
+        forces are left out."""
+        x, quat = self._element_pose(q)
+        step = None if rate is None else (rate.reference, rate.inv_h)
+        stored = step_potential(self.rest_length, self.reference_strain, self.stiffness, self.tau,
+                                x, quat, self.tension_only, self.kink_strain, step)
+        f, _ = self._external(q, t, load_factor)
+        n3 = 3 * self.n_nodes
+        return float(stored.sum()) - float(np.einsum("i,i", f[:n3], q.x.ravel()))
 
     def retract(self, q: Configuration, dq: FloatArray) -> Configuration:
         n3 = 3 * self.n_nodes
@@ -354,3 +381,4 @@ class CosseratModel:
                                 self.tension_only, self.kink_strain)
         kinetic = 0.5 * float(np.sum(self.dof_mass * v * v))
         return {"kinetic": kinetic, "elastic": float(elastic.sum())}
+
