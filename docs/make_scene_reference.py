@@ -26,10 +26,10 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
     "simulation.type": (
         "", '"dynamic": integrate in time. "static": the equilibrium under the loads, raised in '
         "`load_steps` equal increments of a load factor; one frame per load step, with the load "
-        "factor as its `time`. A static scene whose structure is not held against rigid motion "
-        "(its unloaded stiffness is singular: a free or merely pinned rod, cable threads, or the "
-        'tension-only axial law, which has no stiffness at zero strain) is refused. See '
-        "[the rod model](rod_model.md#static-runs)."),
+        "factor as its `time`. Structures that only their load holds are solved (a slack cable "
+        "between two pins, a net hung from its knots, a rod whose supports leave it free to "
+        "twist); a static scene with a part that has no supported node, and no fixed body to "
+        "rest on, is refused (no load holds it). See [the rod model](rod_model.md#static-runs)."),
     "simulation.duration": ("s", "Simulated time of a dynamic run; > 0. Not used by static runs."),
     "simulation.dt": (
         "s", "> 0. Explicit integrator with `adaptive = false`: the step, shrunk so that a whole "
@@ -40,22 +40,22 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
     "simulation.adaptive": (
         "", "Explicit integrator: `true` sets the step to `explicit_safety` times the stability "
         "limit (S10) of the scene, computed once before the run; `false` uses `dt`. Implicit "
-        "integrators: `true` halves the step when Newton's method fails; with `error_tolerance` "
-        "set, generalized-alpha and midpoint also resize every step from a local error estimate "
-        "(and reject a step above the tolerance), otherwise the step grows by a quarter after two "
-        "steps in a row that each converged within four iterations; always up to `dt_max`. "
-        "`false` keeps `dt`, and a step whose Newton solve fails ends the run. Not used by "
-        "`rk45`, which controls its step with `rtol`."),
+        "integrators: `true` resizes every step from a local error estimate (see "
+        "`error_tolerance`, which has a default) and halves a step whose Newton solve fails, up "
+        "to `dt_max`; `false` keeps `dt`, and a step whose Newton solve fails ends the run. Not "
+        "used by `rk45`, which controls its step with `rtol`."),
     "simulation.error_tolerance": (
-        "m", "> 0. Implicit generalized-alpha and midpoint with `adaptive = true`: the largest "
-        "estimated local error of any node position per step (Zienkiewicz-Xie estimate "
-        "`|beta - 1/6| dt^2 |a1 - a0|`, midpoint `dt^2 |a1 - a0| / 12`). A step above it is "
-        "rejected; every step is resized by `0.9 (tolerance / error)^(1/3)`, within 0.2 to 2. "
-        "Not set: no error control, the step follows Newton's convergence only (fast, but not "
-        "accuracy-controlled). Measured on the 1.5 m thread of the benchmark: 1e-5 m gives a "
-        "tip error of 0.9 mm, 1e-6 m 0.23 mm. Not used by backward Euler, `explicit`, `rk45`."),
+        "m", "> 0. Implicit integrators with `adaptive = true`: the local error of the node "
+        "positions a step may make, as the root-mean-square over the nodes of each node's "
+        "estimated error (bdf2 `(1 + w)^2 / (6 w (1 + 2 w)) dt^2 |a1 - a0|` with `w` the step "
+        "ratio, generalized-alpha `|beta - 1/6| dt^2 |a1 - a0|` (Zienkiewicz-Xie), midpoint "
+        "`dt^2 |a1 - a0| / 12`, backward Euler `dt |v1 - v0| / 2`). A step above it is rejected; "
+        "every step is resized by `0.9 (tolerance / error)^(1/(p+1))` (`p` the order), within "
+        "0.2 to 2. Not set: 3e-5 times the size of the structure (the diagonal of its stress-free "
+        "bounding box): 0.9 mm on the reference net, 30 um on a 1 m thread. Not used by `explicit`, "
+        "`rk45` or fixed steps."),
     "simulation.integrator": (
-        "", 'Not set: "explicit" for `model.type = "lumped"` and `"kirchhoff"`, "generalized-alpha" '
+        "", 'Not set: "explicit" for `model.type = "lumped"` and `"kirchhoff"`, "bdf2" '
         'otherwise (Kirchhoff threads run "explicit" or "rk45" only). '
         '"generalized-alpha": implicit, second order, numerical dissipation set by `rho_inf`; '
         "a step that raises the mechanical energy (a thread snapping taut or a penalty contact "

@@ -16,7 +16,7 @@ from rodnet.errors import SceneError
 Vec3 = tuple[float, float, float]
 
 
-MODEL_TYPES: dict[str, str] = {"cosserat": "generalized-alpha", "lumped": "explicit",
+MODEL_TYPES: dict[str, str] = {"cosserat": "bdf2", "lumped": "explicit",
                                "kirchhoff": "explicit"}
 """Every ``model.type`` and the integrator a scene of that type runs with when it names none.
 The model registry (:mod:`rodnet.models.registry`) enters every model it knows here."""

@@ -249,7 +249,8 @@ class Scheme:
 
         weights = np.full(len(free_trans), d / length)
         weights[reduced_rot] = d
-        problem = NewtonProblem(p.evaluate, shorten, small, p.merit, weights, accept, active_set)
+        problem = NewtonProblem(p.evaluate, shorten, small, p.merit, weights, accept, active_set,
+                                s.dof_mass[free], length)
         rot = s.rotation_dofs()
         # a start that turns a node by more than the rotation cap lies beyond where the
         # exponential map is one-to-one near the solution: left out (the last start turns least)
@@ -572,9 +573,13 @@ def _step_rate(reference: Any, inv_h: float) -> StepRate | None:
 
 
 def _translation_error(scheme: Scheme, factor: float, change: FloatArray, h: float) -> float:
+    """``factor h^2 |change|`` over the free translations, in the root-mean-square norm per
+    node (the length of a node's error vector, averaged in square over the nodes): a net's
+    accuracy is that of its whole shape, and a norm of the largest would let every thread
+    snapping taut somewhere shrink the step of all."""
     _, free_trans = scheme._layout()
-    free = scheme.system.free
-    return factor * h * h * float(np.max(np.abs(change[free][free_trans]), initial=0.0))
+    c = change[scheme.system.free][free_trans]
+    return factor * h * h * float(np.sqrt(3.0 * np.mean(c * c))) if c.size else 0.0
 
 
 def cap_rotations(du: FloatArray, rotations: NDArray[np.int64], triples: NDArray[np.int64],

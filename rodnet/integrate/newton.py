@@ -42,11 +42,11 @@ class NewtonOptions:
 
     rtol: float = 1e-8
     atol: float = 1e-10
-    max_iterations: int = 60
+    max_iterations: int = 200
     reuse_factorization: bool = False
     max_rotation: float = np.pi / 4
     xtol: float = 1e-7
-    stall_iterations: int = 12
+    stall_iterations: int = 25
     mixed: bool = True
     """Newton's matrix takes the stresses of the strains linearised along the last correction
     (the mixed Newton step, :mod:`rodnet.integrate.mixed`) in its geometric stiffness."""
@@ -211,6 +211,10 @@ class NewtonProblem:
         Told every accepted iterate.
     active_set : callable, optional
         Fingerprint of the non-smooth state at ``u`` (for factorisation reuse).
+    metric : (n,) float, optional
+        Positive masses of the unknowns, for the Levenberg-Marquardt shift.
+    length : float
+        The structure's size [m] (the reach of the first shifted step).
     """
 
     evaluate: Evaluate
@@ -220,6 +224,8 @@ class NewtonProblem:
     weights: FloatArray | None = None
     on_accept: Callable[[FloatArray], None] | None = None
     active_set: Callable[[FloatArray], Any] | None = None
+    metric: FloatArray | None = None
+    length: float = 1.0
 
 
 def newton(problem: NewtonProblem, u0: FloatArray, scale: float, solver: LinearSolver,
@@ -276,48 +282,33 @@ def newton(problem: NewtonProblem, u0: FloatArray, scale: float, solver: LinearS
     if p.on_accept is not None:   # the start is the first iterate: its matrix is exact
         p.on_accept(here.u)
     if not _direction(p, solver, here, "exact"):
-        return done(here, False, "the iteration matrix cannot be factorised", True)
+        if not here.potential:
+            return done(here, False, "the iteration matrix cannot be factorised", True)
+        here.du = None   # a singular matrix (a slack cable at rest): a shifted step first
     watch: _Point | None = None      # the point before a step taken without decrease
     free = True                      # a free step may be taken (none failed since a full one)
-    shift = {"mu": LEVENBERG_START}  # the last Levenberg-Marquardt factor that served
+    shift: dict[str, float] = {}     # the last Levenberg-Marquardt factor that served
     watched = 0                      # monotone steps taken since the free one
     best, since_best = math.inf, 0
     while count["iterations"] < options.max_iterations:
-        if p.small is not None and p.small(here.du):
+        if here.du is not None and p.small is not None and p.small(here.du):
             final = _point(p, here.u + here.du, None)
             count["iterations"] += 1
             if history is not None:
                 history.append(final.norm)
             return done(final, True)
-        trial = _point(p, here.u + here.step, here)
         count["iterations"] += 1
-        if watch is None and _decreases(trial, here, 1.0, options, solver, w):
-            nxt, free = trial, True
-        elif watch is None and free and math.isfinite(trial.norm):
-            nxt, watch, watched = trial, here, 0       # the watchdog's free step
-        elif watch is not None and _decreases(trial, watch, 1.0, options):
-            nxt, watch, free = trial, None, True       # the free step paid off
-        elif (watch is not None and watched < WATCHDOG_STEPS
-              and _decreases(trial, here, 1.0, options, solver, w)):
-            nxt, watched = trial, watched + 1           # on its way down: a while longer
+        if here.du is None:
+            nxt, watch = _levenberg(p, solver, here, options, shift), None
         else:
-            origin = here if watch is None else watch  # back to where the search began
-            free = free and watch is None              # no free step again before a full one
-            watch = None
-            nxt = _backtrack(p, origin, 1.0 / 64.0, options, solver if origin is here else None,
-                             w) if origin.slope < 0.0 else None
-            if nxt is None:
-                nxt = _levenberg(p, solver, origin, options, shift) if origin.potential else None
-                if nxt is None:
-                    if not _direction(p, solver, origin, "convex"):
-                        return done(origin, False, "the convexified matrix cannot be "
-                                    "factorised", True)
-                    nxt = _backtrack(p, origin, options.min_step, options, None, w) \
-                        if origin.slope < 0.0 else None
-                if nxt is None:
-                    return done(origin, False, f"no step along the Newton correction reduces "
-                                f"the residual {origin.norm:.3g} N (tolerance {tol:.3g} N)")
-        size = _length(w * here.du)
+            nxt, watch, free, watched = _next(p, solver, here, options, w, watch, free,
+                                              watched, shift)
+        if nxt is None:
+            origin = here if watch is None else watch
+            return done(origin, False, f"no step along the Newton correction reduces the "
+                        f"residual {origin.norm:.3g} N (tolerance {tol:.3g} N)",
+                        here.du is None)
+        size = _length(w * (nxt.u - here.u))
         lowered = nxt.phi < here.phi - 1e-6 * abs(here.phi)
         previous, here = here, nxt
         if history is not None:
@@ -329,7 +320,9 @@ def newton(problem: NewtonProblem, u0: FloatArray, scale: float, solver: LinearS
                  and p.active_set(here.u) == p.active_set(previous.u))
         if not (reuse and _kept_direction(p, solver, here)) and \
                 not _direction(p, solver, here, "exact"):
-            return done(here, False, "the iteration matrix cannot be factorised", True)
+            if not here.potential:
+                return done(here, False, "the iteration matrix cannot be factorised", True)
+            here.du = None
         if p.on_accept is not None:
             p.on_accept(here.u)
         if size < 0.5 * best or lowered:
@@ -344,10 +337,14 @@ def newton(problem: NewtonProblem, u0: FloatArray, scale: float, solver: LinearS
 
 
 LEVENBERG_START = 1e-4
-"""The first factor ``mu`` of the Levenberg-Marquardt shift ``mu diag(|H_ii|)``."""
+"""The first factor ``mu`` of the Levenberg-Marquardt shift ``mu diag(|H_ii|)`` (no metric)."""
 
-LEVENBERG_TRIES = 12
-"""Factors tried, each ten times the last, before the shifted step is given up."""
+LEVENBERG_REACH = 0.01
+"""With a metric, the first shifted step moves the most accelerated node by about this fraction
+of the structure's size."""
+
+LEVENBERG_TRIES = 20
+"""Factors tried, each four times the last, before the shifted step is given up."""
 
 WATCHDOG_STEPS = 3
 """Steps after a free one that may decrease the merit from where they start without yet
@@ -363,7 +360,7 @@ class _Point:
     norm: float
     phi: float
     potential: bool
-    du: FloatArray = field(default_factory=lambda: np.zeros(0))
+    du: FloatArray | None = field(default_factory=lambda: np.zeros(0))
     step: FloatArray = field(default_factory=lambda: np.zeros(0))
     slope: float = 0.0
 
@@ -400,6 +397,35 @@ def _direction(p: NewtonProblem, solver: LinearSolver, at: _Point, matrix: str) 
     at.slope = _dot(at.r, at.step) if at.potential or matrix == "convex" else \
         -_dot(at.r, at.r) * _ratio(at.step, du)
     return True
+
+
+def _next(p: NewtonProblem, solver: LinearSolver, here: _Point, options: NewtonOptions,
+          w: FloatArray, watch: _Point | None, free: bool, watched: int,
+          shift: dict[str, float]) -> tuple[_Point | None, _Point | None, bool, int]:
+    """One iteration from ``here``: the full Newton step, the watchdog, backtracking and the
+    shifted convexified step, in that order (see :func:`newton`). Returns the next iterate
+    (None when none decreases the merit) and the watchdog's state ``watch, free, watched``."""
+    trial = _point(p, here.u + here.step, here)
+    if watch is None and _decreases(trial, here, 1.0, options, solver, w):
+        return trial, None, True, watched
+    if watch is None and free and math.isfinite(trial.norm):
+        return trial, here, free, 0                    # the watchdog's free step
+    if watch is not None and _decreases(trial, watch, 1.0, options):
+        return trial, None, True, watched              # the free step paid off
+    if (watch is not None and watched < WATCHDOG_STEPS
+            and _decreases(trial, here, 1.0, options, solver, w)):
+        return trial, watch, free, watched + 1         # on its way down: a while longer
+    origin = here if watch is None else watch          # back to where the search began
+    free = free and watch is None                      # no free step again before a full one
+    if origin is not here and p.on_accept is not None:
+        p.on_accept(origin.u)    # the caller's chart (a static solve's base) goes back too
+    nxt = _backtrack(p, origin, 1.0 / 64.0, options, solver if origin is here else None, w) \
+        if origin.slope < 0.0 else None
+    if nxt is None and origin.potential:
+        nxt = _levenberg(p, solver, origin, options, shift)
+    if nxt is None and _direction(p, solver, origin, "convex") and origin.slope < 0.0:
+        nxt = _backtrack(p, origin, options.min_step, options, None, w)
+    return nxt, None, free, watched
 
 
 def _polished(p: NewtonProblem, solver: LinearSolver, at: _Point) -> _Point:
@@ -458,21 +484,33 @@ def _decreases(trial: _Point, at: _Point, alpha: float, options: NewtonOptions,
 def _levenberg(p: NewtonProblem, solver: LinearSolver, at: _Point, options: NewtonOptions,
                shift: dict[str, float]) -> _Point | None:
     """A step that decreases the potential from ``at``: the correction of the convexified
-    matrix ``H`` shifted by ``mu diag(|H_ii|)`` (Levenberg-Marquardt with Marquardt's
-    scaling), ``mu`` raised tenfold until the full step decreases the potential sufficiently.
-    A large shift turns the step towards steepest descent in the metric of the matrix and
-    shortens it, which tames the near-singular directions of a convexified matrix (a thread's
-    spin about its own axis between pinned knots). The factor that served, divided by ten,
-    starts the next call (``shift``)."""
+    matrix ``H`` shifted by ``mu D`` (Levenberg-Marquardt), ``mu`` raised fourfold until the
+    full step decreases the potential sufficiently.
+
+    ``D`` is the diagonal mass ``metric`` where the problem gives one: ``(H + mu M) du = -r``
+    is then a step of pseudo-time ``1 / sqrt(mu)`` of the damped dynamics that relax to the
+    minimum (pseudo-transient continuation), which also moves parts that have no stiffness
+    yet (a slack cable at rest). The first ``mu`` lets the most accelerated node move 1 % of
+    the structure's size; later calls start from the last factor that served, divided by
+    four. Without a metric, ``D = diag(|H_ii|)`` (Marquardt's scaling). A large shift shortens
+    the step and turns it towards steepest descent, which tames the near-singular directions
+    of a convexified matrix (a thread's spin about its own axis between pinned knots)."""
     _, H = p.evaluate(at.u, "convex")
-    scale = np.abs(diagonal(H))
-    scale = np.maximum(scale, 1e-12 * float(scale.max(initial=0.0)))
+    if p.metric is not None:
+        scale = np.asarray(p.metric, dtype=float)
+        if "mu" not in shift:
+            acceleration = float(np.max(np.abs(at.r) / scale))
+            shift["mu"] = acceleration / (LEVENBERG_REACH * p.length)
+    else:
+        scale = np.abs(diagonal(H))
+        scale = np.maximum(scale, 1e-12 * float(scale.max(initial=0.0)))
+        shift.setdefault("mu", LEVENBERG_START)
     mu = shift["mu"]
     for _ in range(LEVENBERG_TRIES):
         try:
             solver.factorize(add_diagonal(H, mu * scale))
         except (FloatingPointError, RuntimeError):
-            mu *= 10.0
+            mu *= 4.0
             continue
         du = -solver.solve(at.r)
         step = du if p.shorten is None else p.shorten(du)
@@ -480,10 +518,10 @@ def _levenberg(p: NewtonProblem, solver: LinearSolver, at: _Point, options: Newt
         if np.isfinite(du).all() and slope < 0.0:
             trial = _point(p, at.u + step, at)
             if math.isfinite(trial.phi) and trial.phi <= at.phi + options.armijo * slope:
-                shift["mu"] = max(mu / 10.0, LEVENBERG_START)
+                shift["mu"] = mu / 4.0
                 at.du = du
                 return trial
-        mu *= 10.0
+        mu *= 4.0
     return None
 
 

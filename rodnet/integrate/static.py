@@ -121,7 +121,8 @@ def _static_increment(system: System, q_start: Configuration, load: float, optio
         def merit(u: FloatArray) -> float:
             return system.potential(moved(u), STATIC_TIME, load)  # type: ignore[return-value]
 
-    problem = NewtonProblem(evaluate, shorten, small, merit, weights, rebase)
+    problem = NewtonProblem(evaluate, shorten, small, merit, weights, rebase,
+                            metric=system.dof_mass[free], length=system.length_scale)
     result = newton(problem, np.zeros(n_free), scale, solver, options, history)
     if result.singular:
         raise SimulationFailed(

@@ -95,7 +95,8 @@ CASES = {
                                                     "model.bending=false", "model.torsion=false"]),
 }
 COMMON = ["model.type=cosserat", "model.knots=rigid", "simulation.duration=0.5",
-          "output.vtk=false", "output.picture=false", "output.plot=false"]
+          "simulation.integrator=explicit", "output.vtk=false", "output.picture=false",
+          "output.plot=false"]
 FORMS = ("GA", "GA-sym", "BE", "IP")
 H = 1e-3
 T_LATE, T_PREV = 0.5, 0.49
