@@ -368,8 +368,8 @@ means `model.type = "cosserat"` with `bending` or `torsion` on; "cable threads" 
 `model.type = "cosserat"` with both off, which runs the lumped model's equations.
 
 Rigid bodies (`[[bodies]]`) are free unless `fixed = true`; free bodies move with the `explicit`
-integrator only. Contact with bodies (`[contact]`) is modelled for the lumped model, cable
-threads and Cosserat rods (fixed bodies); see [contact](contact.md).
+and the implicit integrators. Contact with bodies (`[contact]`) is modelled for the lumped model, cable
+threads and Cosserat rods; see [contact](contact.md).
 Keys that only one model or one kind of run uses are read and checked by all; the descriptions
 say where a key has no effect.
 """

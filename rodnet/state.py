@@ -20,13 +20,19 @@ FloatArray = NDArray[np.float64]
 @dataclass(frozen=True)
 class Configuration:
     """Positions ``x`` (N, 3) [m] and unit quaternions ``quat`` (R, 4) (w, x, y, z) of the
-    rotation nodes; ``R = 0`` for models without rotations (the lumped model, cables)."""
+    rotation nodes; ``R = 0`` for models without rotations (the lumped model, cables). In an
+    implicit run with free rigid bodies also their centres ``body_x`` (F, 3) [m] and the
+    rotations of their principal axes ``body_quat`` (F, 4) (principal to world); F = 0
+    otherwise (the bodies' motion is then in :attr:`State.bodies`)."""
 
     x: FloatArray
     quat: FloatArray = field(default_factory=lambda: np.zeros((0, 4)))
+    body_x: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
+    body_quat: FloatArray = field(default_factory=lambda: np.zeros((0, 4)))
 
     def copy(self) -> Configuration:
-        return Configuration(self.x.copy(), self.quat.copy())
+        return Configuration(self.x.copy(), self.quat.copy(), self.body_x.copy(),
+                             self.body_quat.copy())
 
 
 @dataclass(frozen=True)
@@ -131,7 +137,8 @@ class State:
     @property
     def spin(self) -> FloatArray:
         """Body-frame angular velocities of the rotation nodes (R, 3) [rad/s], a view of ``v``."""
-        return self.v[self.q.x.size:].reshape(-1, 3)
+        n3 = self.q.x.size
+        return self.v[n3:n3 + 3 * len(self.q.quat)].reshape(-1, 3)
 
     def copy(self) -> State:
         return replace(self, q=self.q.copy(), v=self.v.copy(),

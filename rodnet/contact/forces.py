@@ -24,6 +24,7 @@ from rodnet.contact.broadphase import (ContactPoints, body_point_velocity, body_
 from rodnet.contact.geometry import FloatArray, SurfaceQuery
 from rodnet.contact.laws import PointForces, contact_force, normal_energy
 from rodnet.contact.rigid_body import kinetic_energy
+from rodnet.kernels import so3
 from rodnet.state import BodyMotion
 
 
@@ -137,6 +138,101 @@ def nodal_tangents(contact: BodyContact, motion: BodyMotion, x: FloatArray,
     return ContactTangents(force, d_x, d_v)
 
 
+class CoupledTangents(NamedTuple):
+    """Contact forces and their derivatives with the free bodies' motion as unknowns too."""
+
+    force: FloatArray
+    """(N, 3) force on every node [N]."""
+    body_force: FloatArray
+    """(B, 3) sum of the point forces on the threads near each body, ``sum f`` [N] (the body
+    feels its negative)."""
+    body_moment: FloatArray
+    """(B, 3) ``sum (p - c) x f`` about each body's centre, world axes [N m] (the body feels its
+    negative)."""
+    d_position: FloatArray
+    """(S, 6, 6) as :class:`ContactTangents`, for the fixed bodies."""
+    d_velocity: FloatArray
+    """(S, 6, 6)."""
+    coupled_position: dict[int, FloatArray]
+    """Free body b -> (S, 12, 12) derivatives of ``[g_a, g_b, g_c, g_phi]`` with respect to
+    ``[x_a, x_b, c, phi]`` (B7)."""
+    coupled_velocity: dict[int, FloatArray]
+    """Free body b -> (S, 12, 12) the same with respect to ``[v_a, v_b, V, W]``."""
+
+
+def coupled_tangents(contact: BodyContact, motion: BodyMotion, frames: FloatArray,
+                     x: FloatArray, v: FloatArray, need_matrices: bool = True) -> CoupledTangents:
+    """Contact forces on the nodes and, per body, their sum and moment, with the derivatives
+    that couple every segment to the motion of each free body (B7)-(B9).
+
+    A free body's unknowns are its centre ``c``, a rotation ``phi`` in the body frame
+    ``frames[b]`` (``R_b -> R_b exp(hat(phi))``), its velocity ``V`` and angular velocity ``W``
+    in that frame. The generalized forces of the threads are ``g_a = -N_a f`` (per point force
+    ``f`` at ``p = N_a x_a + N_b x_b``), those of the body ``g_c = f`` and
+    ``g_phi = R_b^T (p - c) x f``: the body takes the reaction at the thread's point, so that
+    forces and moments of contact cancel exactly.
+
+    Parameters
+    ----------
+    frames : (B, 3, 3) float
+        World rotation of the frame each free body's rotation unknown lives in (its principal
+        axes); ignored for fixed bodies.
+    x, v : (N, 3) float
+        Node positions [m] and velocities [m/s].
+    """
+    n_seg = len(contact.segments)
+    force = np.zeros_like(x)
+    body_force = np.zeros((contact.n_bodies, 3))
+    body_moment = np.zeros((contact.n_bodies, 3))
+    d_x, d_v = np.zeros((n_seg, 6, 6)), np.zeros((n_seg, 6, 6))
+    coupled_x: dict[int, FloatArray] = {}
+    coupled_v: dict[int, FloatArray] = {}
+    eye = np.eye(3)
+    for b, bp in enumerate(body_points(contact, motion, x, v)):
+        f_all = bp.forces.force
+        force += distribute_force(f_all, bp.points, contact.segments, len(x))
+        arm_all = bp.points.position - motion.position[b]
+        body_force[b] = f_all.sum(axis=0)
+        body_moment[b] = np.cross(arm_all, f_all).sum(axis=0)
+        if contact.free[b] and need_matrices:
+            coupled_x[b], coupled_v[b] = np.zeros((n_seg, 12, 12)), np.zeros((n_seg, 12, 12))
+        active = bp.forces.normal_force > 0.0
+        if not need_matrices or not active.any():
+            continue
+        seg, xi = bp.points.segment[active], bp.points.parameter[active]
+        D_p, D_u = bp.forces.d_position[active], bp.forces.d_velocity[active]
+        if not contact.free[b]:
+            np.add.at(d_x, seg, segment_blocks(D_p, xi))
+            np.add.at(d_v, seg, segment_blocks(D_u, xi))
+            continue
+        f, arm = f_all[active], arm_all[active]
+        R = frames[b]
+        omega = motion.omega[b]
+        w = shape_functions(xi)                                    # (C, 2)
+        ends = contact.segments[seg]
+        u_trans = w[:, 0, None] * v[ends[:, 0]] + w[:, 1, None] * v[ends[:, 1]] \
+            - motion.velocity[b]
+        hat_r, hat_f, hat_w = so3.hat(arm), so3.hat(f), so3.hat(omega)
+        D_x = D_p - D_u @ hat_w                                    # df/dp, body still
+        F_psi = -hat_f + D_p @ hat_r + D_u @ (so3.hat(u_trans) - hat_w @ hat_r)
+        A = np.concatenate([w[:, 0, None, None] * D_x, w[:, 1, None, None] * D_x, -D_x,
+                            F_psi @ R], axis=2)                    # (C, 3, 12)
+        Cv = np.concatenate([w[:, 0, None, None] * D_u, w[:, 1, None, None] * D_u, -D_u,
+                             D_u @ hat_r @ R], axis=2)
+        rows = np.concatenate([-w[:, 0, None, None] * eye, -w[:, 1, None, None] * eye,
+                               np.broadcast_to(eye, (len(f), 3, 3)),
+                               R.T @ hat_r], axis=1)               # (C, 12, 3)
+        K = rows @ A
+        m_body = np.einsum("ji,cj->ci", R, np.cross(arm, f))       # R^T (p - c) x f
+        K[:, 9:, 0:3] -= w[:, 0, None, None] * (R.T @ hat_f)
+        K[:, 9:, 3:6] -= w[:, 1, None, None] * (R.T @ hat_f)
+        K[:, 9:, 6:9] += R.T @ hat_f
+        K[:, 9:, 9:] += so3.hat(m_body)
+        np.add.at(coupled_x[b], seg, K)
+        np.add.at(coupled_v[b], seg, rows @ Cv)
+    return CoupledTangents(force, body_force, body_moment, d_x, d_v, coupled_x, coupled_v)
+
+
 class ContactState(NamedTuple):
     """What a saved frame reports about contact."""
 
@@ -172,21 +268,25 @@ def contact_state(contact: BodyContact, motion: BodyMotion, x: FloatArray,
 
 
 def step_travel(contact: BodyContact, motion: BodyMotion, x_old: FloatArray,
-                x_new: FloatArray) -> float:
+                x_new: FloatArray, old_motion: BodyMotion | None = None) -> float:
     """Largest travel over a step of the nodes of segments that pass near a body, as a multiple
     of the body's travel limit (above 1: the step is too long), (E3).
 
     A segment counts when the box of its old and new end positions, grown by the thread radius
     and the law's smoothing, overlaps the body's box: only then can a point on it reach the body
-    during the step.
+    during the step. With ``old_motion`` (bodies that moved over the step to ``motion``) the
+    old positions are carried along with each body, so that the travel is relative to it.
     """
     a, b = contact.segments[:, 0], contact.segments[:, 1]
-    move = np.linalg.norm(x_new - x_old, axis=1)
-    seg_move = np.maximum(move[a], move[b])
     reach = contact.radius + contact.law.smoothing
     worst = 0.0
+    x_before = x_old
     for k, shape in enumerate(contact.shapes):
         R, p = motion.rotation[k], motion.position[k]
+        if old_motion is not None:  # old positions in the body's frame, placed at its new pose
+            x_old = p + (x_before - old_motion.position[k]) @ old_motion.rotation[k] @ R.T
+        move = np.linalg.norm(x_new - x_old, axis=1)
+        seg_move = np.maximum(move[a], move[b])
         corners = np.stack([x_old[a], x_old[b], x_new[a], x_new[b]], axis=1)
         local = np.einsum("sci,ij->scj", corners - p, R)
         lower, upper = local.min(axis=1) - reach[:, None], local.max(axis=1) + reach[:, None]

@@ -12,7 +12,10 @@ friction acts at the centreline, and its moment about the thread axis is neglect
 (FORMULATION section 6).
 
 The bodies' pose and velocity come with every call, from the run's state: the term holds no
-state. Implicit integrators hold the bodies fixed (FORMULATION section 8). Equations:
+state. In an implicit run the free bodies are unknowns of the global system beside the threads
+(FORMULATION section 9): :meth:`ContactTerm.moving_unknowns` gives their start values,
+:meth:`ContactTerm.motion` the bodies' motion from them, and :meth:`ContactTerm.coupled` the
+forces and the tangent blocks that couple every segment to every free body. Equations:
 ``elements/contact/FORMULATION.md``; user guide: ``docs/contact.md``.
 """
 
@@ -26,11 +29,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rodnet.contact.bodies import BodyContact
-from rodnet.contact.forces import (body_energy, contact_state, nodal_force, nodal_tangents,
-                                   pressed_nodes, step_travel)
+from rodnet.contact.forces import (CoupledTangents, body_energy, contact_state,
+                                   coupled_tangents, nodal_force, nodal_tangents, pressed_nodes,
+                                   step_travel)
 from rodnet.contact.kernel_data import kernel_data
 from rodnet.contact.surfaces import surface_triangles
 from rodnet.kernels.contact_compiled import ContactData
+from rodnet.kernels import so3
 from rodnet.kernels.explicit import BodyMass
 from rodnet.state import BodyMotion
 
@@ -83,9 +88,11 @@ class ContactTerm:
     def active_set(self, x: FloatArray, v: FloatArray, motion: BodyMotion) -> bytes:
         return pressed_nodes(self.bodies, motion, x, v)
 
-    def step_travel(self, x_old: FloatArray, x_new: FloatArray, motion: BodyMotion) -> float:
-        """Travel of the points near a body over a step as a multiple of the travel limit (E3)."""
-        return step_travel(self.bodies, motion, x_old, x_new)
+    def step_travel(self, x_old: FloatArray, x_new: FloatArray, motion: BodyMotion,
+                    old_motion: BodyMotion | None = None) -> float:
+        """Travel of the points near a body over a step as a multiple of the travel limit (E3);
+        relative to the body when it moved from ``old_motion``."""
+        return step_travel(self.bodies, motion, x_old, x_new, old_motion)
 
     def step_work(self, x: FloatArray, v: FloatArray, dt: float, motion: BodyMotion) -> float:
         """Friction work of an accepted step of ``dt`` ending at ``x``, ``v`` [J]: the friction
@@ -96,6 +103,68 @@ class ContactTerm:
         """The bodies' ``kinetic`` and gravity ``potential`` energy and the ``contact`` energy
         in the penalty springs (N4) [J], to add to the threads'."""
         return body_energy(self.bodies, motion, x)
+
+    # --- free bodies as unknowns of an implicit system (FORMULATION section 9) -------------
+
+    @cached_property
+    def moving(self) -> NDArray[np.int64]:
+        """(F,) indices of the free bodies."""
+        return np.flatnonzero(self.bodies.free)
+
+    @cached_property
+    def principal(self) -> tuple[FloatArray, FloatArray]:
+        """Principal axes ``P`` (F, 3, 3) (columns, det +1) of every free body's inertia in body
+        axes, and its principal moments ``J`` (F, 3) [kg m^2]: ``inertia = P diag(J) P^T``."""
+        J, P = np.linalg.eigh(self.bodies.inertia[self.moving].reshape(-1, 3, 3))
+        P[:, :, 2] *= np.sign(np.linalg.det(P))[:, None]
+        return P, J
+
+    @property
+    def moving_mass(self) -> FloatArray:
+        """(F,) mass of every free body [kg]."""
+        return self.bodies.mass[self.moving]
+
+    def moving_unknowns(self, motion: BodyMotion
+                        ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """The free bodies' unknowns at ``motion``: centres (F, 3), principal-axes quaternions
+        (F, 4), velocities (F, 3) and angular velocities in principal axes (F, 3)."""
+        P, _ = self.principal
+        f = self.moving
+        frames = np.einsum("fij,fjk->fik", motion.rotation[f], P)
+        quat = np.array([so3.quat_from_matrix(R) for R in frames]).reshape(-1, 4)
+        W = np.einsum("fji,fj->fi", frames, motion.omega[f])
+        return motion.position[f].copy(), quat, motion.velocity[f].copy(), W
+
+    def motion(self, body_x: FloatArray, body_quat: FloatArray, V: FloatArray,
+               W: FloatArray) -> BodyMotion:
+        """Every body's motion with the free ones at the unknowns ``body_x`` (F, 3),
+        ``body_quat`` (F, 4), ``V`` (F, 3), ``W`` (F, 3) (as :meth:`moving_unknowns`)."""
+        motion = self.bodies.start_motion()
+        if not len(self.moving):
+            return motion
+        P, J = self.principal
+        f = self.moving
+        frames = np.array([so3.quat_to_matrix(q) for q in body_quat]).reshape(-1, 3, 3)
+        rotation = np.einsum("fij,fkj->fik", frames, P)
+        motion.position[f], motion.velocity[f] = body_x, V
+        motion.rotation[f] = rotation
+        motion.quaternion[f] = [so3.quat_from_matrix(R) for R in rotation]
+        motion.omega[f] = np.einsum("fij,fj->fi", frames, W)
+        motion.momentum[f] = np.einsum("fij,fj->fi", frames, J * W)
+        return motion
+
+    def frames(self, body_quat: FloatArray) -> FloatArray:
+        """(B, 3, 3) the principal frames of the free bodies (identity for fixed ones)."""
+        out = np.tile(np.eye(3), (self.n_bodies, 1, 1))
+        if len(self.moving):
+            out[self.moving] = [so3.quat_to_matrix(q) for q in body_quat]
+        return out
+
+    def coupled(self, x: FloatArray, v: FloatArray, motion: BodyMotion, frames: FloatArray,
+                need_matrices: bool) -> CoupledTangents:
+        """Forces on the nodes and bodies and, when asked, the tangent blocks coupling the
+        segments to the free bodies (B7)-(B9): :func:`rodnet.contact.forces.coupled_tangents`."""
+        return coupled_tangents(self.bodies, motion, frames, x, v, need_matrices)
 
     # --- the explicit loop ---------------------------------------------------------------
 

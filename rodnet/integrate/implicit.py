@@ -573,13 +573,9 @@ def _step_rate(reference: Any, inv_h: float) -> StepRate | None:
 
 
 def _translation_error(scheme: Scheme, factor: float, change: FloatArray, h: float) -> float:
-    """``factor h^2 |change|`` over the free translations, in the root-mean-square norm per
-    node (the length of a node's error vector, averaged in square over the nodes): a net's
-    accuracy is that of its whole shape, and a norm of the largest would let every thread
-    snapping taut somewhere shrink the step of all."""
-    _, free_trans = scheme._layout()
-    c = change[scheme.system.free][free_trans]
-    return factor * h * h * float(np.sqrt(3.0 * np.mean(c * c))) if c.size else 0.0
+    """``factor h^2 |change|``, the norm the system measures a change of its velocities by
+    (:meth:`~rodnet.integrate.system.System.error_norm`)."""
+    return factor * h * h * scheme.system.error_norm(change)
 
 
 def cap_rotations(du: FloatArray, rotations: NDArray[np.int64], triples: NDArray[np.int64],

@@ -103,6 +103,15 @@ class System(Protocol):
         a reused factorisation is refreshed."""
         ...
 
+    def error_norm(self, change: FloatArray) -> float:
+        """The size of a change of the velocities (n_dof,) as a speed [m/s], the norm of the
+        local error estimate: for threads the root-mean-square over the nodes of their
+        translations (a net's accuracy is that of its whole shape, and a norm of the largest
+        would let every thread snapping taut somewhere shrink the step of all); for rigid
+        bodies the largest speed change of a point on their bounding sphere. The larger of
+        the two."""
+        ...
+
     def rotation_dofs(self) -> NDArray[np.int64]:
         """Indices of the rotational DOFs (their Newton increments are capped)."""
         ...

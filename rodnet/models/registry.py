@@ -104,15 +104,15 @@ ROTATION_KEYS = ("model.bending", "model.torsion", "model.knots", "model.shear_c
 MODELS: dict[str, ModelType] = {
     "lumped": ModelType(
         "the lumped model", build_lumped, lumped_explicit_plan,
-        Supports(ALL, True, (*IMPLICIT, "explicit"), ("explicit",)),
+        Supports(ALL, True, (*IMPLICIT, "explicit"), (*IMPLICIT, "explicit")),
         stable_step=lambda m: m.stable_step(), unused=ROTATION_KEYS),
     "cable": ModelType(
         "cable threads", build_lumped, lumped_explicit_plan,
-        Supports(ALL, True, (*IMPLICIT, "explicit"), ("explicit",)),
+        Supports(ALL, True, (*IMPLICIT, "explicit"), (*IMPLICIT, "explicit")),
         stable_step=lambda m: m.stable_step(), unused=ROTATION_KEYS),
     "rods": ModelType(
         "Cosserat rods", build_cosserat, rod_explicit_plan,
-        Supports((*IMPLICIT, "explicit"), True, (*IMPLICIT, "explicit"), ("explicit",),
+        Supports((*IMPLICIT, "explicit"), True, (*IMPLICIT, "explicit"), (*IMPLICIT, "explicit"),
                  why={"integrators": "RK45 integrates no rotations"})),
     "kirchhoff": ModelType(
         "Kirchhoff threads", build_kirchhoff, lumped_explicit_plan,
@@ -264,7 +264,8 @@ def build(scene: Scene) -> Built:
             scale = float((model.dof_mass[rotations] / inertia).max())
     elif entry.stable_step is not None:
         stable = entry.stable_step(model)
-    system = ThreadSystem(model, contact, control)
+    moving = scene.simulation.type == "dynamic" and scene.integrator in IMPLICIT
+    system = ThreadSystem(model, contact, control, moving_bodies=moving)
     return Built(system, system.initial_state(q0, v0), structure, name, stable, scale)
 
 

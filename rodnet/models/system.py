@@ -11,6 +11,11 @@ Newton's iteration matrix ``diag(m) + a C + b K T(dq)`` is assembled in one pass
 group's blocks (:meth:`rodnet.assembly.SparsityPattern.iteration_matrix`); ``T(dq)`` is the
 identity on translations and ``dexp`` of the increment on rotation nodes whose three rotations
 are free.
+
+In an implicit run with free rigid bodies (``moving_bodies``) every free body adds six unknowns
+after the model's: its centre and velocity, then its rotation and angular velocity about its
+principal axes (so that its inertia is diagonal, like a rotation node's); the contact term
+couples them to the threads (``elements/contact/FORMULATION.md`` section 9).
 """
 
 from __future__ import annotations
@@ -25,7 +30,7 @@ from numpy.typing import NDArray
 
 from rodnet.assembly import IterationMatrix, SparsityPattern
 from rodnet.contact.term import ContactTerm
-from rodnet.kernels import so3_compiled
+from rodnet.kernels import so3, so3_compiled
 from rodnet.kernels.contact_compiled import no_contact
 from rodnet.kernels.cosserat_compiled import RodElements
 from rodnet.kernels.explicit import BodyMass, ExplicitProblem, Loads, Nodes, Rotations, StepControl
@@ -106,21 +111,52 @@ class ThreadSystem:
     contact : ContactTerm or None
     control : StepControl or None
         Set by the registry for an explicit run.
+    moving_bodies : bool
+        The free bodies are unknowns of the system (implicit runs); otherwise they are held at
+        their start pose here and the explicit loop moves them.
     """
 
     model: Any
     contact: ContactTerm | None = None
     control: StepControl | None = field(default=None)
+    moving_bodies: bool = False
 
     # --- sizes and scales ----------------------------------------------------------------
 
-    @property
-    def n_dof(self) -> int:
-        return self.model.n_dof
+    @cached_property
+    def n_moving(self) -> int:
+        """F, the free bodies that are unknowns of the system."""
+        return len(self.contact.moving) if self.moving_bodies and self.contact else 0
 
     @property
+    def n_dof(self) -> int:
+        return self.model.n_dof + 6 * self.n_moving
+
+    @cached_property
     def dof_mass(self) -> FloatArray:
-        return self.model.dof_mass
+        if not self.n_moving:
+            return self.model.dof_mass
+        _, J = self.contact.principal
+        return np.concatenate([self.model.dof_mass, np.repeat(self.contact.moving_mass, 3),
+                               J.ravel()])
+
+    @cached_property
+    def _body_dofs(self) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        """(F, 3) translational and (F, 3) rotational DOFs of the free bodies."""
+        n, f = self.model.n_dof, self.n_moving
+        return (n + np.arange(3 * f).reshape(-1, 3), n + 3 * f + np.arange(3 * f).reshape(-1, 3))
+
+    def _split(self, v: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """The model's velocities and the free bodies' ``V`` (F, 3) and ``W`` (F, 3)."""
+        trans, rot = self._body_dofs
+        return v[:self.model.n_dof], v[trans], v[rot]
+
+    def _motion(self, q: Configuration, v: FloatArray) -> BodyMotion:
+        """The bodies' motion at ``q``, ``v`` (their start motion where they are not unknowns)."""
+        if not self.n_moving:
+            return self._start  # type: ignore[return-value]
+        _, V, W = self._split(v)
+        return self.contact.motion(q.body_x, q.body_quat, V, W)  # type: ignore[union-attr]
 
     @property
     def n_nodes(self) -> int:
@@ -132,9 +168,9 @@ class ThreadSystem:
         """Rotation nodes R (0 without rotations)."""
         return self.model.n_rot
 
-    @property
+    @cached_property
     def free(self) -> NDArray[np.bool_]:
-        return self.model.free
+        return np.concatenate([self.model.free, np.ones(6 * self.n_moving, bool)])
 
     @property
     def force_scale(self) -> float:
@@ -164,27 +200,43 @@ class ThreadSystem:
         return None if self.contact is None else self.contact.start_motion()
 
     def initial_state(self, q0: Configuration, v0: FloatArray) -> State:
-        """The state at t = 0: ``q0``, ``v0`` and the bodies' start motion."""
-        return State(q0, np.array(v0, dtype=float), self._start.copy() if self._start else None)
+        """The state at t = 0: ``q0``, ``v0`` and the bodies' start motion (with moving bodies
+        also as unknowns in the configuration and velocities)."""
+        v0 = np.array(v0, dtype=float)
+        if self.n_moving:
+            body_x, body_quat, V, W = self.contact.moving_unknowns(self._start)  # type: ignore
+            q0 = Configuration(q0.x, q0.quat, body_x, body_quat)
+            v0 = np.concatenate([v0, V.ravel(), W.ravel()])
+        return State(q0, v0, self._start.copy() if self._start else None)
 
     # --- the System protocol: implicit integrators and statics ---------------------------
 
     @cached_property
     def _pattern(self) -> SparsityPattern:
         groups = list(self.model.groups) + ([self.contact.dofs] if self.contact else [])
+        if self.n_moving:
+            trans, rot = self._body_dofs
+            n_seg = len(self.contact.dofs)  # type: ignore[union-attr]
+            groups += [np.hstack([self.contact.dofs, np.tile(np.r_[trans[k], rot[k]],  # type: ignore
+                                                             (n_seg, 1))])
+                       for k in range(self.n_moving)]
+            groups.append(np.hstack([trans, rot]))
         return SparsityPattern(groups, self.n_dof, self.free)
 
     def _forces(self, q: Configuration, v: FloatArray, t: float, load_factor: float,
                 need_matrices: bool, rate: StepRate | None = None,
                 linearization: Linearization | None = None,
                 ) -> tuple[FloatArray, list[FloatArray], list[FloatArray]]:
+        v_model = v[:self.model.n_dof]
         if self.model_has_strains:
-            g, K_blocks, C_blocks = self.model.forces(q, v, t, load_factor, need_matrices, rate,
-                                                      linearization)
+            g, K_blocks, C_blocks = self.model.forces(q, v_model, t, load_factor, need_matrices,
+                                                      rate, linearization)
         else:  # a model without strains: no step rates, exact tangents only
-            g, K_blocks, C_blocks = self.model.forces(q, v, t, load_factor, need_matrices)
+            g, K_blocks, C_blocks = self.model.forces(q, v_model, t, load_factor, need_matrices)
         if self.contact is None:
             return g, K_blocks, C_blocks
+        if self.n_moving:
+            return self._coupled_forces(q, v, load_factor, g, K_blocks, C_blocks, need_matrices)
         n3 = 3 * self.model.n_nodes
         velocities = v[:n3].reshape(-1, 3)
         if not need_matrices:
@@ -193,6 +245,39 @@ class ThreadSystem:
         f, d_x, d_v = self.contact.tangents(q.x, velocities, self._start)
         g[:n3] -= f.ravel()
         return g, [*K_blocks, -d_x], [*C_blocks, -d_v]
+
+    def _coupled_forces(self, q: Configuration, v: FloatArray, load_factor: float,
+                        g_model: FloatArray, K_blocks: list[FloatArray],
+                        C_blocks: list[FloatArray], need_matrices: bool,
+                        ) -> tuple[FloatArray, list[FloatArray], list[FloatArray]]:
+        """The model's forces with contact and the free bodies' own equations added: gravity,
+        the reactions of contact and the gyroscopic moment ``W x J W`` (C block
+        ``hat(W) J - hat(J W)``), (B7)-(B9)."""
+        contact = self.contact
+        assert contact is not None
+        n3, f = 3 * self.model.n_nodes, self.n_moving
+        motion = self._motion(q, v)
+        frames = contact.frames(q.body_quat)
+        ct = contact.coupled(q.x, v[:n3].reshape(-1, 3), motion, frames, need_matrices)
+        g = np.concatenate([g_model, np.zeros(6 * f)])
+        g[:n3] -= ct.force.ravel()
+        trans, rot = self._body_dofs
+        moving = contact.moving
+        _, J = contact.principal
+        _, _, W = self._split(v)
+        JW = J * W
+        gravity = np.asarray(contact.bodies.gravity, dtype=float)
+        g[trans] = ct.body_force[moving] - load_factor * contact.moving_mass[:, None] * gravity
+        g[rot] = np.einsum("fji,fj->fi", frames[moving], ct.body_moment[moving]) \
+            + np.cross(W, JW)
+        if not need_matrices:
+            return g, K_blocks, C_blocks
+        own_C = np.zeros((f, 6, 6))
+        own_C[:, 3:, 3:] = so3.hat(W) * J[:, None, :] - so3.hat(JW)
+        K_blocks = [*K_blocks, -ct.d_position, *(ct.coupled_position[b] for b in moving),
+                    np.zeros((f, 6, 6))]
+        C_blocks = [*C_blocks, -ct.d_velocity, *(ct.coupled_velocity[b] for b in moving), own_C]
+        return g, K_blocks, C_blocks
 
     def generalized_force(self, q: Configuration, v: FloatArray, t: float,
                           load_factor: float = 1.0, rate: StepRate | None = None) -> FloatArray:
@@ -216,7 +301,12 @@ class ThreadSystem:
                                                  self._triple_transforms(dq))
 
     def retract(self, q: Configuration, dq: FloatArray) -> Configuration:
-        return self.model.retract(q, dq)
+        moved = self.model.retract(q, dq[:self.model.n_dof])
+        if not self.n_moving:
+            return moved
+        _, dc, dphi = self._split(dq)
+        return Configuration(moved.x, moved.quat, q.body_x + dc,
+                             so3.retract(q.body_quat, dphi))
 
     @cached_property
     def model_has_strains(self) -> bool:
@@ -230,13 +320,13 @@ class ThreadSystem:
         for a model without them."""
         if not self.model_has_strains:
             return None, None
-        return self.model.strains(q, v)
+        return self.model.strains(q, v[:self.model.n_dof])
 
     def step_rate(self, q: Configuration, v: FloatArray, h_bar: float) -> StepRate | None:
         """The :class:`~rodnet.state.StepRate` of a step that moves the configuration as
         ``q* o exp(h_bar (v1 - v*))`` from ``q* = q``, ``v* = v``: reference strains
         ``e(q) - h_bar de/dt(q, v)``, ``inv_h = 1 / h_bar``; None without step rates."""
-        strain, rate = self.strains(q, v)
+        strain, rate = self.strains(q, v[:self.model.n_dof])
         return None if strain is None else StepRate(strain - h_bar * rate, 1.0 / h_bar)
 
     def potential(self, q: Configuration, t: float, load_factor: float = 1.0,
@@ -258,7 +348,10 @@ class ThreadSystem:
             return None
         energy = 0.5 * float(np.einsum("i,i,i", self.dof_mass, v, v)) + stored
         if self.contact is not None:
-            energy += self.contact.energy(q.x, self._start)["contact"]
+            energy += self.contact.energy(q.x, self._motion(q, v))["contact"]
+        if self.n_moving:  # the free bodies' weight
+            gravity = np.asarray(self.contact.bodies.gravity, dtype=float)  # type: ignore
+            energy -= float(self.contact.moving_mass @ (q.body_x @ gravity))  # type: ignore
         return energy
 
     @property
@@ -300,25 +393,52 @@ class ThreadSystem:
         return self._pattern.reduced_index[self._free_rotation_dofs]
 
     def active_set(self, q: Configuration, v: FloatArray) -> int:
-        threads = self.model.active_set(q, v)
+        threads = self.model.active_set(q, v[:self.model.n_dof])
         if self.contact is None:
             return hash(threads)
         n3 = 3 * self.model.n_nodes
-        return hash((threads, self.contact.active_set(q.x, v[:n3].reshape(-1, 3), self._start)))
+        return hash((threads, self.contact.active_set(q.x, v[:n3].reshape(-1, 3),
+                                                      self._motion(q, v))))
+
+    @cached_property
+    def _thread_translations(self) -> NDArray[np.int64]:
+        """The model's free translational DOFs."""
+        translation = self.model.free.copy()
+        translation[self.model.rotation_dofs()] = False
+        return np.flatnonzero(translation)
+
+    def error_norm(self, change: FloatArray) -> float:
+        c = change[self._thread_translations]
+        threads = float(np.sqrt(3.0 * np.mean(c * c))) if c.size else 0.0
+        if not self.n_moving:
+            return threads
+        trans, rot = self._body_dofs
+        radius = self.contact.bodies.bound_radius[self.contact.moving]  # type: ignore[union-attr]
+        bodies = np.sqrt(np.sum(change[trans] ** 2, axis=1)
+                         + radius**2 * np.sum(change[rot] ** 2, axis=1))
+        return max(threads, float(bodies.max()))
 
     def rotation_dofs(self) -> NDArray[np.int64]:
-        return self.model.rotation_dofs()
+        if not self.n_moving:
+            return self.model.rotation_dofs()
+        return np.concatenate([self.model.rotation_dofs(), self._body_dofs[1].ravel()])
 
     def step_travel(self, q_old: Configuration, q_new: Configuration) -> float:
+        """Travel of thread points near a body relative to it (E3)."""
         if self.contact is None:
             return 0.0
-        return self.contact.step_travel(q_old.x, q_new.x, self._start)
+        if not self.n_moving:
+            return self.contact.step_travel(q_old.x, q_new.x, self._start)
+        zero = np.zeros((self.n_moving, 3))
+        old = self.contact.motion(q_old.body_x, q_old.body_quat, zero, zero)
+        new = self.contact.motion(q_new.body_x, q_new.body_quat, zero, zero)
+        return self.contact.step_travel(q_old.x, q_new.x, new, old)
 
     def step_work(self, q: Configuration, v: FloatArray, dt: float) -> float:
         if self.contact is None:
             return 0.0
         n3 = 3 * self.model.n_nodes
-        return self.contact.step_work(q.x, v[:n3].reshape(-1, 3), dt, self._start)
+        return self.contact.step_work(q.x, v[:n3].reshape(-1, 3), dt, self._motion(q, v))
 
     # --- the System protocol: the explicit loop ------------------------------------------
 
@@ -342,7 +462,9 @@ class ThreadSystem:
     def frame(self, t: float, state: State) -> dict[str, Any]:
         """What a saved frame holds: the model's arrays, the kinetic and elastic energy [J] and,
         with bodies, the contact and body arrays of :meth:`ContactTerm.frame_arrays`."""
-        frame = self.model.frame_arrays(state.q, state.v)
+        if self.n_moving:  # the bodies' motion from the unknowns, for the frame and the state
+            state.bodies = self._motion(state.q, state.v)
+        frame = self.model.frame_arrays(state.q, state.v[:self.model.n_dof])
         energy = self.energy(t, state)
         frame["kinetic_energy"], frame["elastic_energy"] = energy["kinetic"], energy["elastic"]
         if self.contact is not None and state.bodies is not None:
@@ -353,9 +475,10 @@ class ThreadSystem:
     def energy(self, t: float, state: State) -> dict[str, float]:
         """Kinetic, elastic (and, where the model reports it, external-load potential) energy
         [J]; with bodies also theirs and ``contact``, the energy in the penalty springs."""
-        energy = self.model.energy(state.q, state.v, t)
-        if self.contact is not None and state.bodies is not None:
-            for key, value in self.contact.energy(state.q.x, state.bodies).items():
+        energy = self.model.energy(state.q, state.v[:self.model.n_dof], t)
+        motion = self._motion(state.q, state.v) if self.n_moving else state.bodies
+        if self.contact is not None and motion is not None:
+            for key, value in self.contact.energy(state.q.x, motion).items():
                 if key in energy or key == "contact":
                     energy[key] = energy.get(key, 0.0) + value
         return energy

@@ -158,11 +158,10 @@ def test_rods_touch_bodies_and_rk45_does_not() -> None:
     rods = prepare(scene_from_toml(with_body(), ["model.type=cosserat",
                                                  'simulation.integrator="generalized-alpha"']))
     assert rods.system.contact.bodies.names == ("target",) and rods.model.n_rot > 0
-    with pytest.raises(SceneError, match="free bodies move with") as info:
-        prepare(scene_from_toml(with_body(), ["model.type=cosserat", "bodies[0].fixed=false",
-                                              "bodies[0].mass=10.0",
-                                              'simulation.integrator="generalized-alpha"']))
-    assert info.value.key == "simulation.integrator"
+    free = prepare(scene_from_toml(with_body(), ["model.type=cosserat", "bodies[0].fixed=false",
+                                                 "bodies[0].mass=10.0",
+                                                 'simulation.integrator="generalized-alpha"']))
+    assert free.system.n_moving == 1 and free.system.n_dof == free.model.n_dof + 6
     with pytest.raises(SceneError, match="rk45 does not model contact") as info:
         prepare(scene_from_toml(with_body(), ['simulation.integrator="rk45"']))
     assert info.value.key == "simulation.integrator"
@@ -189,14 +188,15 @@ def test_bad_inertia_is_named_with_what_is_allowed(inertia: str, word: str) -> N
     assert word in str(info.value)
 
 
-def test_free_bodies_need_the_explicit_integrator_and_a_dynamic_run() -> None:
+def test_free_bodies_move_with_every_dynamic_integrator_that_models_contact() -> None:
     free = ["bodies[0].fixed=false", "bodies[0].mass=10.0"]
-    for integrator in ("generalized-alpha", "backward-euler", "midpoint"):
-        with pytest.raises(SceneError, match="free bodies move with the 'explicit' integrator") \
-                as info:
-            prepare(scene_from_toml(with_body(), [*free, f'simulation.integrator="{integrator}"']))
-        assert info.value.key == "simulation.integrator" and info.value.value == integrator
-        assert "bodies[0] ('target')" in str(info.value)
+    for integrator in ("bdf2", "generalized-alpha", "backward-euler", "midpoint"):
+        system = prepare(scene_from_toml(with_body(), [
+            *free, f'simulation.integrator="{integrator}"'])).system
+        assert system.n_moving == 1          # the body's six unknowns join the system
+    with pytest.raises(SceneError, match="rk45 does not model contact") as info:
+        prepare(scene_from_toml(with_body(), [*free, 'simulation.integrator="rk45"']))
+    assert info.value.key == "simulation.integrator"
     with pytest.raises(SceneError, match="a static run needs every body fixed") as info:
         prepare(scene_from_toml(with_body(), [*free, 'simulation.type="static"']))
     assert info.value.key == "simulation.type"
@@ -214,16 +214,16 @@ def test_given_inertia_is_used_in_body_axes() -> None:
                                                              [-0.25, 0.125, 4.0]])
 
 
-def test_cli_refuses_a_free_body_with_an_implicit_integrator_and_writes_nothing(
+def test_cli_refuses_a_free_body_in_a_static_run_and_writes_nothing(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     scene = tmp_path / "scene.toml"
     scene.write_text(with_body("mass = 10.0\n").replace("fixed = true", "fixed = false")
-                     .replace('integrator = "explicit"', 'integrator = "backward-euler"'))
+                     .replace('integrator = "explicit"', 'type = "static"'))
     out = tmp_path / "out"
     assert main(["run", str(scene), "-o", str(out), "--quiet"]) == 2
     assert not out.exists()
     err = capsys.readouterr().err
-    assert "simulation.integrator" in err and "free bodies move with the 'explicit'" in err
+    assert "simulation.type" in err and "a static run needs every body fixed" in err
 
 
 def test_contact_defaults_and_orientation() -> None:
