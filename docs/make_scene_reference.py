@@ -294,10 +294,10 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
     "bodies.fixed": (
         "", "`true`: the body is held in place and never moves (its pose is constant in the "
         "results). `false` (the default): a free 6-DOF rigid body moved by contact and gravity "
-        "(needs `mass` or `density`, and the `explicit` integrator; refused with implicit "
-        "integrators and static runs, so with Cosserat rods). Contact with bodies works in the "
-        "lumped model, cable threads and Cosserat rods, with an `explicit` or (fixed bodies only) "
-        "implicit integrator, not `rk45`; a body that touches a thread at the start is refused, "
+        "(needs `mass` or `density`; moves with the `explicit` and every implicit integrator, "
+        "where it is six unknowns of the global system; refused in static runs). Contact with "
+        "bodies works in the lumped model, cable threads and Cosserat rods, with the `explicit` "
+        "and the implicit integrators, not `rk45`; a body that touches a thread at the start is refused, "
         "naming the first node inside it."),
     # [contact]
     "contact.stiffness": (
