@@ -61,7 +61,8 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
         "a step that raises the mechanical energy (a thread snapping taut or a penalty contact "
         "within one step) is taken again as backward Euler. "
         '"bdf2": implicit, second order, L-stable (variable-step BDF2; each step the '
-        "minimisation of an incremental potential). "
+        "minimisation of an incremental potential; a step that raises the mechanical energy is "
+        "taken again as backward Euler, as for generalized-alpha). "
         '"backward-euler": implicit, first order, strongly dissipative. "midpoint": implicit, '
         "second order, conserves linear and angular momentum, no numerical dissipation. "
         '"explicit": symplectic '

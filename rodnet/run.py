@@ -142,7 +142,7 @@ ERROR_FRACTION = 3e-5
 """The default ``simulation.error_tolerance`` as a fraction of the structure's size (the diagonal
 of its stress-free bounding box): 0.9 mm on the reference net, 30 um on a 1 m thread. Measured
 (validation/benchmarks/results/implicit_defaults.md): the reference deployment's largest mouth
-area within 0.33 % of the converged one with cable threads (BDF2), the 1 m thread's tip within
+area within 0.35 % of the converged one with cable threads (BDF2), the 1 m thread's tip within
 0.42 mm of a run at 1e-7 m."""
 
 

@@ -1,12 +1,13 @@
 """Benchmark: stability sweep of the reference deployment at fixed steps.
 
 The reference deployment (``rodnet demo``) with ``simulation.adaptive = false`` at every step of
-``--dts`` (default 1e-4, 3e-4, 1e-3, 3e-3 and 1e-2 s) and, at each step, the reference
+``--dts`` (default 1e-4, 3e-4, 1e-3, 3e-3 and 1e-2 s; ``adaptive`` in the list: the default step
+control instead, no step keys) and, at each step, the reference
 parameters, one parameter at a time moved to the ends of its range (Young's modulus 1 and
 200 GPa, thread diameter 0.5 and 3 mm, launch speed 5 and 50 m/s), and two corners of the range
 (stiff, thin and fast; soft, thin and fast). Models: Cosserat threads with bending and torsion
-(pinned knots), cables, the lumped model (all with generalized-alpha), and the lumped model and
-the Cosserat threads with the explicit integrator.
+(pinned knots), cables, the lumped model (all with the implicit ``--integrator``, default
+generalized-alpha), and the lumped model and the Cosserat threads with the explicit integrator.
 
 Every run must either complete with finite states and no energy growth (nothing does work on the
 net, so kinetic plus elastic energy can only fall; "completed" needs the largest rise above the
@@ -18,8 +19,9 @@ reported as "hung".
 
 Usage, from the repository root, with ``OPENBLAS_NUM_THREADS=1``:
 ``python validation/benchmarks/stability_sweep.py [--models cosserat,lumped] [--n 1]
-[--duration 0.5] [--limit 300] [--dts 1e-4,...]``. Each run's record is kept in
-``results/stability_<model>_<duration>s/runs/`` (a rerun reuses it; not kept in git); the table of every
+[--duration 0.5] [--limit 300] [--dts adaptive,1e-4,...] [--integrator bdf2]``. Each run's record
+is kept in ``results/stability_<model>_<duration>s/runs/`` (``stability_<model>_<integrator>_...``
+for an implicit integrator other than generalized-alpha) (a rerun reuses it; not kept in git); the table of every
 model run so far goes to ``results/stability_sweep.md`` and ``.csv``.
 """
 
@@ -95,18 +97,28 @@ def _f(value: Any, spec: str) -> str:
     return "-" if value is None or (isinstance(value, float) and not np.isfinite(value)) else format(value, spec)
 
 
-def sweep(model: str, n: int, duration: float, limit: float, dts: list[float]) -> list[dict[str, Any]]:
+def sweep(model: str, n: int, duration: float, limit: float, dts: list[float | str],
+          integrator: str = "generalized-alpha") -> list[dict[str, Any]]:
+    """Every variation at every step of ``dts`` (``"adaptive"``: default step control)."""
     rows = []
+    keys = tuple(f"simulation.integrator={integrator}" if k in GA else k for k in MODELS[model])
+    implicit = keys != MODELS[model]
+    folder = RESULTS / (f"stability_{model}_{integrator}_{duration:g}s"
+                        if implicit and integrator != "generalized-alpha"
+                        else f"stability_{model}_{duration:g}s")
     for dt in dts:
+        steps = ("simulation.adaptive=true",) if dt == "adaptive" else \
+            ("simulation.adaptive=false", f"simulation.dt={dt:g}")
         for name, overrides in VARIATIONS:
-            run = BenchRun(f"{model} n={n}", f"dt {dt:g} {name}", "sweep",
-                           MODELS[model] + (f"model.elements_per_thread={n}", "simulation.adaptive=false",
-                                            f"simulation.dt={dt:g}", f"simulation.duration={duration:g}")
-                           + overrides)
-            row = {"model": model, "dt": dt, "variation": name, "overrides": " ".join(overrides),
-                   **verdict(run_one(run, RESULTS / f"stability_{model}_{duration:g}s", limit, GRACE))}
+            run = BenchRun(f"{model} n={n}", f"dt {dt:g} {name}" if dt != "adaptive"
+                           else f"adaptive {name}", "sweep",
+                           keys + (f"model.elements_per_thread={n}", *steps,
+                                   f"simulation.duration={duration:g}") + overrides)
+            row = {"model": model + (f" ({integrator})" if implicit else ""), "dt": dt,
+                   "variation": name, "overrides": " ".join(overrides),
+                   **verdict(run_one(run, folder, limit, GRACE))}
             rows.append(row)
-            print(f"{model} | dt {dt:g} | {name} | {row['outcome']} {row['cause']} | "
+            print(f"{model} | dt {dt} | {name} | {row['outcome']} {row['cause']} | "
                   f"t = {_f(row['simulated_s'], '.3g')} s | {_f(row['wall_s'], '.1f')} s | "
                   f"{row['message'][:200]}", flush=True)
     return rows
@@ -129,7 +141,7 @@ def write_tables(rows: list[dict[str, Any]], header: str) -> str:
                f"limit, {sum(r['outcome'] == 'hung' for r in rows)} hung, "
                f"{sum(r['outcome'] == 'NOT OK' for r in rows)} completed with NaN or energy growth, "
                f"{sum(r['cause'] == 'UNCLEAR' for r in rows)} stopped with an unclassified message"
-               + (": " + "; ".join(f"{r['model']} dt {r['dt']:g} {r['variation']}" for r in flagged)
+               + (": " + "; ".join(f"{r['model']} dt {r['dt']} {r['variation']}" for r in flagged)
                   if flagged else "") + ".")
     lines = [header, "", summary, "", "| model | outcome | cause | runs |", "|---|---|---|---|",
              *[f"| {m} | {o} | {c or '-'} | {k} |" for (m, o, c), k in sorted(counts.items())], "",
@@ -137,7 +149,7 @@ def write_tables(rows: list[dict[str, Any]], header: str) -> str:
              "largest energy rise | max area m^2 | max tension N |",
              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        lines.append(f"| {r['model']} | {r['dt']:g} | {r['variation']} | {r['outcome']} | {r['cause'] or '-'} | "
+        lines.append(f"| {r['model']} | {r['dt']} | {r['variation']} | {r['outcome']} | {r['cause'] or '-'} | "
                      f"{_f(r['simulated_s'], '.3g')} | {_f(r['wall_s'], '.1f')} | {_f(r['steps'], 'd')} | "
                      f"{_f(r['newton_iterations'], 'd')} | {_f(r['energy_rise'], '+.1e')} | "
                      f"{_f(r['max_mouth_area'], '.1f')} | {_f(r['max_tension'], '.3g')} |")
@@ -146,7 +158,7 @@ def write_tables(rows: list[dict[str, Any]], header: str) -> str:
         if r["message"]:
             examples.setdefault((r["model"], r["cause"]), r)
     lines += ["", "One message of each model and cause, in full, with the run it came from:", "",
-              *[f"- {m}, {c} (dt {r['dt']:g}, {r['variation']}): `{r['message'][:400]}`"
+              *[f"- {m}, {c} (dt {r['dt']}, {r['variation']}): `{r['message'][:400]}`"
                 for (m, c), r in examples.items()]]
     text = "\n".join(lines) + "\n"
     (RESULTS / "stability_sweep.md").write_text(text)
@@ -159,16 +171,21 @@ def main() -> None:
     parser.add_argument("--n", type=int, default=1, help="elements per thread")
     parser.add_argument("--duration", type=float, default=0.5, help="simulated seconds")
     parser.add_argument("--limit", type=float, default=300.0, help="wall seconds per run")
-    parser.add_argument("--dts", default="1e-4,3e-4,1e-3,3e-3,1e-2")
+    parser.add_argument("--dts", default="1e-4,3e-4,1e-3,3e-3,1e-2",
+                        help="fixed steps [s]; 'adaptive' for the default step control")
+    parser.add_argument("--integrator", default="generalized-alpha",
+                        help="the implicit integrator of the implicit models")
     args = parser.parse_args()
-    dts = [float(x) for x in args.dts.split(",")]
+    dts: list[float | str] = [x if x == "adaptive" else float(x) for x in args.dts.split(",")]
     rows = []
     for model in args.models.split(","):
-        rows += sweep(model, args.n, args.duration, args.limit, dts)
+        rows += sweep(model, args.n, args.duration, args.limit, dts, args.integrator)
     header = (f"# Stability sweep: the reference deployment at fixed steps\n\n"
               f"Models {args.models.replace(',', ', ')}; {args.n} element(s) per thread; "
               f"{args.duration:g} s simulated; time limit {args.limit:g} s wall per run; "
-              "generalized-alpha (rho_inf 0.7) unless the model says explicit; adaptive = false; "
+              f"implicit models with {args.integrator} (generalized-alpha: rho_inf 0.7); steps "
+              f"{args.dts} (adaptive: the default step control, no step keys, else adaptive = "
+              "false); "
               "one BLAS thread. Written by `validation/benchmarks/stability_sweep.py`.\n\n"
               "Outcomes: *completed* (finite, largest rise of kinetic plus elastic energy over the "
               "saved frames at most 1 %); *stopped* (the run ended itself with a message, cause "
