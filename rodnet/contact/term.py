@@ -144,7 +144,7 @@ class ContactTerm:
             return motion
         P, J = self.principal
         f = self.moving
-        frames = np.array([so3.quat_to_matrix(q) for q in body_quat]).reshape(-1, 3, 3)
+        frames = self.frames(body_quat)[f]
         rotation = np.einsum("fij,fkj->fik", frames, P)
         motion.position[f], motion.velocity[f] = body_x, V
         motion.rotation[f] = rotation

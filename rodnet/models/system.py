@@ -326,7 +326,7 @@ class ThreadSystem:
         """The :class:`~rodnet.state.StepRate` of a step that moves the configuration as
         ``q* o exp(h_bar (v1 - v*))`` from ``q* = q``, ``v* = v``: reference strains
         ``e(q) - h_bar de/dt(q, v)``, ``inv_h = 1 / h_bar``; None without step rates."""
-        strain, rate = self.strains(q, v[:self.model.n_dof])
+        strain, rate = self.strains(q, v)
         return None if strain is None else StepRate(strain - h_bar * rate, 1.0 / h_bar)
 
     def potential(self, q: Configuration, t: float, load_factor: float = 1.0,
@@ -347,11 +347,9 @@ class ThreadSystem:
         if stored is None:
             return None
         energy = 0.5 * float(np.einsum("i,i,i", self.dof_mass, v, v)) + stored
-        if self.contact is not None:
-            energy += self.contact.energy(q.x, self._motion(q, v))["contact"]
-        if self.n_moving:  # the free bodies' weight
-            gravity = np.asarray(self.contact.bodies.gravity, dtype=float)  # type: ignore
-            energy -= float(self.contact.moving_mass @ (q.body_x @ gravity))  # type: ignore
+        if self.contact is not None:  # the penalty springs and, when they move, the bodies' weight
+            bodies = self.contact.energy(q.x, self._motion(q, v))
+            energy += bodies["contact"] + (bodies["potential"] if self.n_moving else 0.0)
         return energy
 
     @property
