@@ -619,8 +619,8 @@ def integrate_implicit(scheme: Scheme, state: State, times: NDArray[np.float64],
     it may grow by at most 1.2 per accepted step from there. With an
     ``error_tolerance`` [m] and a scheme that estimates its local error
     (:meth:`Scheme.local_error`), a step whose estimate exceeds the tolerance is rejected and
-    every step is resized by ``0.9 (tolerance / error)^(1/3)`` (within 0.2 ... 2; no growth after
-    a Newton solve of more than six iterations). Otherwise, after two steps in a row that each
+    every step is resized by ``0.9 (tolerance / error)^(1/3)`` (within 0.2 ... 2) and by at most
+    ``(6 / iterations)^(1/2)`` for the Newton iterations it took (:func:`_resize_factor`). Otherwise, after two steps in a row that each
     converged within four iterations the step grows by a quarter. Either way the step stays
     below ``dt_max`` (default: the interval between saved frames). A step that moves a point
     near a rigid body more than its travel limit is retried shorter; friction work of every
@@ -682,7 +682,7 @@ def integrate_implicit(scheme: Scheme, state: State, times: NDArray[np.float64],
                 h = min(max(h_try * factor, h if h_try < h and factor >= 1.0 else 0.0), dt_max)
             motion, t = new, t + h_try
             stats.record_step(h_try)
-            newton_limit *= 1.2
+            newton_limit = 1.2 * newton_limit if newton_limit < dt_max else math.inf
             h = min(h, newton_limit)
             state.friction_work += system.step_work(motion.q, motion.v, h_try)
             if adaptive and not (controlled and np.isfinite(error)):  # growth on easy Newton
@@ -696,10 +696,16 @@ def integrate_implicit(scheme: Scheme, state: State, times: NDArray[np.float64],
     return stats
 
 
+NEWTON_TARGET = 6
+"""Newton iterations per step that the step control aims at."""
+
+
 def _resize_factor(error: float, tolerance: float, iterations: int, order: int) -> float:
-    """Step-size factor from the local error estimate of a scheme of order ``order``: the error
-    scales as h^(order + 1), so ``0.9 (tolerance / error)^(1 / (order + 1))``, within
-    0.2 ... 2, and at most 1 when Newton needed more than six iterations."""
+    """Step-size factor from the local error estimate of a scheme of order ``order`` and the
+    Newton iterations of the step: the error scales as h^(order + 1), so
+    ``0.9 (tolerance / error)^(1 / (order + 1))`` within 0.2 ... 2, and at most
+    ``(NEWTON_TARGET / iterations)^(1/2)``: a step that needed many iterations makes the next
+    one shorter, one that needed few lets it grow by less than the error alone would."""
     factor = 2.0 if error <= 0.0 else 0.9 * (tolerance / error) ** (1.0 / (order + 1))
     factor = min(2.0, max(0.2, factor))
-    return min(factor, 1.0) if iterations > 6 else factor
+    return min(factor, (NEWTON_TARGET / max(iterations, 1)) ** 0.5)
