@@ -4,12 +4,13 @@ the validation cases, ``bench`` the work-precision study of the reference deploy
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 from pathlib import Path
 
 from rodnet.data import reference_scene_text
 
-EXIT_BAD_INPUT, EXIT_FAILED, EXIT_INTERRUPTED = 2, 1, 130
+EXIT_BAD_INPUT, EXIT_FAILED = 2, 1
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -29,7 +30,7 @@ def _parser() -> argparse.ArgumentParser:
                      help="report folder (default: validation/reports)")
     val.add_argument("--fast", action="store_true", help="skip the cases marked slow")
     val.add_argument("--no-tests", action="store_true",
-                     help="do not run the slow validation tests (pytest -m slow tests/validation)")
+                     help="do not run the slow validation tests (pytest -m slow tests)")
     ben = sub.add_parser("bench", help="work-precision study of the reference deployment "
                          "(long: hours; --quick: a small net in a few minutes)")
     ben.add_argument("-o", "--output", type=Path, default=Path("bench"),
@@ -67,17 +68,18 @@ demo_scene_text = reference_scene_text
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point; returns the exit status (0 ok, 1 failed run, 2 bad input, 130 interrupted)."""
+    """Entry point; returns the exit status (0 ok, 1 failed run, 2 bad input, 130 interrupted by
+    Ctrl-C, 143 by SIGTERM)."""
     args = _parser().parse_args(argv)
     if args.command == "validate":
         status, verdict = _validate(args.cases, args.output, args.fast)
         if status != EXIT_BAD_INPUT and not args.no_tests and not args.fast \
-                and Path("tests/validation").is_dir():
+                and Path("tests").is_dir():
             import subprocess
 
-            print("rodnet: running the slow validation tests (pytest -m slow tests/validation)",
+            print("rodnet: running the slow validation tests (pytest -m slow tests)",
                   file=sys.stderr)
-            done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-m", "slow", "tests/validation"])
+            done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-m", "slow", "tests"])
             tests_ok = done.returncode in (0, 5)
             status = status or (0 if tests_ok else EXIT_FAILED)
             verdict += "; slow validation tests " + ("passed" if tests_ok else "FAILED")
@@ -113,7 +115,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"rodnet: warning: {w}", file=sys.stderr)
     _report(result)
     if result.status != "ok":
-        return EXIT_INTERRUPTED if "interrupted" in result.message else EXIT_FAILED
+        if result.status == "interrupted":
+            return 128 + int(getattr(signal, str(result.summary.get("signal", "SIGINT"))))
+        return EXIT_FAILED
     return 0
 
 
@@ -153,7 +157,8 @@ def _validate(cases: Path, output: Path, fast: bool) -> tuple[int, str]:
 def _report(result) -> None:  # type: ignore[no-untyped-def]
     s = result.summary
     if result.status != "ok":
-        print(f"rodnet: the run failed: {result.message}. The {s['frames']} frames computed up to "
+        what = "was stopped" if result.status == "interrupted" else "failed"
+        print(f"rodnet: the run {what}: {result.message}. The {s['frames']} frames computed up to "
               f"t = {s['simulated_time_s']:.4g} s are in {result.directory}/.", file=sys.stderr)
         return
     work = (f" ({s['newton_iterations']} Newton iterations, {s['rejected_steps']} rejected)"

@@ -2,8 +2,9 @@
 
 Everything that can be checked is checked before the output directory is touched, so a bad scene
 never leaves a half-written directory. Once the run starts, every computed frame is kept: a run that
-diverges or is interrupted still writes its frames, ``result.npz`` and a ``summary.json`` with
-``status = "failed"`` and the reason.
+diverges still writes its frames, ``result.npz`` and a ``summary.json`` with ``status = "failed"``
+and the reason; one stopped by Ctrl-C (SIGINT) or SIGTERM (what ``timeout``, batch schedulers and
+dask workers send) the same with ``status = "interrupted"``.
 
 The run knows no model: the registry (:mod:`rodnet.models.registry`) turns the scene into a system
 and its initial state, :data:`INTEGRATORS` picks the integrator by name, and the recorder
@@ -12,7 +13,11 @@ and its initial state, :data:`INTEGRATORS` picks the integrator by name, and the
 
 from __future__ import annotations
 
+import signal
+import threading
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
@@ -230,31 +235,68 @@ def run(scene: Scene, directory: str | Path | None = None, *, progress: bool | N
     status, message, stats = "ok", "", StepStats()
     integrate = INTEGRATORS[scene.integrator] if dynamic else _static
     start = time.perf_counter()
-    try:
-        stats = integrate(p, recorder, bar, stats)
-    except SimulationFailed as exc:
-        status, message = "failed", str(exc)
-    except KeyboardInterrupt:
-        status, message = "failed", "interrupted by the user; the frames computed so far are kept"
-    finally:
-        bar.close()
-        wall = time.perf_counter() - start
-        arrays = recorder.arrays(structure.n_nodes, len(structure.segments))
-        arrays["segments"] = np.asarray(structure.segments)
-        summary = _summary(p, arrays, stats, status, message, wall,
-                           recorder.monitors.get("max_element_rotation", 0.0))
-        summary["threads"] = n_threads
-        for key, value in p.system.summary(arrays).items():
-            if isinstance(value, dict) and isinstance(summary.get(key), dict):
-                summary[key].update(value)
-            else:
-                summary[key] = value
-        write_npz(out / "result.npz", arrays)
-        write_summary(out / "summary.json", summary)
+    stopped_by = None
+    with _sigterm_interrupts() as disarm:
+        try:
+            stats = integrate(p, recorder, bar, stats)
+        except SimulationFailed as exc:
+            status, message = "failed", str(exc)
+        except KeyboardInterrupt as exc:
+            stopped_by = "SIGTERM" if isinstance(exc, Terminated) else "SIGINT"
+            status = "interrupted"
+            message = (f"interrupted by {'SIGTERM' if stopped_by == 'SIGTERM' else 'Ctrl-C (SIGINT)'}"
+                       "; the frames computed so far are kept")
+        finally:
+            disarm()
+            bar.close()
+            wall = time.perf_counter() - start
+            arrays = recorder.arrays(structure.n_nodes, len(structure.segments))
+            arrays["segments"] = np.asarray(structure.segments)
+            summary = _summary(p, arrays, stats, status, message, wall,
+                               recorder.monitors.get("max_element_rotation", 0.0))
+            summary["threads"] = n_threads
+            if stopped_by is not None:
+                summary["signal"] = stopped_by
+            for key, value in p.system.summary(arrays).items():
+                if isinstance(value, dict) and isinstance(summary.get(key), dict):
+                    summary[key].update(value)
+                else:
+                    summary[key] = value
+            write_npz(out / "result.npz", arrays)
+            write_summary(out / "summary.json", summary)
     result = RunResult(status, message, out, summary, arrays)
     if after is not None:
         after(result)
     return result
+
+
+class Terminated(KeyboardInterrupt):
+    """A run stopped by SIGTERM: handled like Ctrl-C, so the run keeps every frame."""
+
+
+@contextmanager
+def _sigterm_interrupts() -> Iterator[Callable[[], None]]:
+    """Within the block SIGTERM raises :class:`Terminated` once; the block is given a function
+    that disarms it (later SIGTERMs are then ignored until the block ends, so that the results
+    get written). Only in the main thread, where Python delivers signals."""
+    if threading.current_thread() is not threading.main_thread():
+        yield lambda: None
+        return
+    armed = [True]
+
+    def stop(signum: int, frame: Any) -> None:
+        if armed[0]:
+            armed[0] = False
+            raise Terminated()
+
+    def disarm() -> None:
+        armed[0] = False
+
+    previous = signal.signal(signal.SIGTERM, stop)
+    try:
+        yield disarm
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def _stability_advice(p: Prepared) -> str:

@@ -77,7 +77,8 @@ def test_interrupt_keeps_frames(tmp_path: Path, monkeypatch) -> None:
 
     monkeypatch.setattr(Recorder, "__call__", interrupt_after_five)
     r = run(scene_from_toml(small_net_toml(duration=0.5)), tmp_path, progress=False)
-    assert r.status == "failed" and "interrupted" in r.message
+    assert r.status == "interrupted" and "Ctrl-C" in r.message
+    assert r.summary["signal"] == "SIGINT"
     assert len(np.load(tmp_path / "result.npz")["time"]) == 5
 
 

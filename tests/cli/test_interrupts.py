@@ -1,0 +1,63 @@
+"""A run stopped by SIGTERM (timeout, batch schedulers, dask workers) or Ctrl-C keeps every
+frame and its summary, says it was interrupted and exits non-zero; a run whose standard error is
+not a terminal logs its progress there."""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tests.conftest import small_net_toml
+
+
+def _start(tmp_path: Path, duration: float, integrator: str) -> tuple[subprocess.Popen, Path, Path]:
+    scene = tmp_path / "net.toml"
+    scene.write_text(small_net_toml(duration=duration, integrator=integrator))
+    out, log = tmp_path / "out", tmp_path / "stderr.txt"
+    process = subprocess.Popen([sys.executable, "-m", "rodnet", "run", str(scene), "-o", str(out)],
+                               stdout=subprocess.DEVNULL, stderr=log.open("w"), cwd=tmp_path)
+    return process, out, log
+
+
+@pytest.mark.parametrize("sent, code, name", [(signal.SIGTERM, 143, "SIGTERM"),
+                                              (signal.SIGINT, 130, "SIGINT")])
+def test_a_signal_keeps_the_frames_and_the_summary(tmp_path: Path, sent: int, code: int,
+                                                   name: str) -> None:
+    # explicit, about 12 s simulated per s: the first line (10 %) after a few seconds
+    process, out, log = _start(tmp_path, duration=300.0, integrator="explicit")
+    try:
+        deadline = time.monotonic() + 240.0
+        while "rodnet: t = " not in log.read_text():   # a progress line: it is stepping
+            assert process.poll() is None, log.read_text()
+            assert time.monotonic() < deadline, "no progress line"
+            time.sleep(0.2)
+        process.send_signal(sent)
+        assert process.wait(timeout=120) == code
+    finally:
+        if process.poll() is None:
+            process.kill()
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "interrupted" and summary["signal"] == name
+    assert "kept" in summary["message"]
+    frames = np.load(out / "result.npz")["time"]
+    assert len(frames) == summary["frames"] >= 2 and 0.0 < frames[-1] < 300.0
+    assert "was stopped" in log.read_text()
+
+
+def test_progress_lines_go_to_a_file(tmp_path: Path) -> None:
+    process, out, log = _start(tmp_path, duration=0.3, integrator="bdf2")
+    assert process.wait(timeout=300) == 0
+    lines = [line for line in log.read_text().splitlines() if line.startswith("rodnet: t = ")]
+    # every 10 % of the simulated time (or 30 s): ten lines, the last at the end
+    assert len(lines) >= 10 and "(100 %)" in lines[-1] and "s left" in lines[-1]
+    quiet = subprocess.run([sys.executable, "-m", "rodnet", "run", str(tmp_path / "net.toml"),
+                            "-o", str(tmp_path / "quiet"), "--quiet"],
+                           capture_output=True, text=True, cwd=tmp_path, timeout=300)
+    assert quiet.returncode == 0 and "rodnet: t = " not in quiet.stderr
