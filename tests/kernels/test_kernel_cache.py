@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
+
 from rodnet.kernels import cache
 
 
@@ -107,6 +109,7 @@ for name, text in (("rod", rod), ("net", net)):
 """
 
 
+@pytest.mark.slow  # about 140 s: compiles every kernel twice from an empty cache
 def test_cached_kernels_load_in_any_order(tmp_path: Path) -> None:
     """numba's cache of a compiled function that calls a ``parallel=True`` function loaded from
     the cache is broken (numba issues 4807, 8578: it segfaulted the second implicit run after an

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from rodnet.cli import demo_scene_text
 from rodnet.run import run
@@ -13,6 +14,7 @@ from rodnet.scene import scene_from_toml
 OFF = ["output.vtk=false", "output.picture=false", "output.plot=false"]
 
 
+@pytest.mark.slow  # about 100 s: RK45 at rtol 1e-8 on the whole net
 def test_explicit_and_rk45_agree_on_the_reference_deployment(tmp_path: Path) -> None:
     explicit = run(scene_from_toml(demo_scene_text(), OFF), tmp_path / "e", progress=False)
     rk45 = run(scene_from_toml(demo_scene_text(), OFF + ["simulation.integrator=rk45"]),

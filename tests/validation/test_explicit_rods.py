@@ -158,7 +158,7 @@ def test_free_net_conserves_linear_momentum_and_loses_energy(tmp_path: Path) -> 
     assert np.all(a["tension"] >= 0.0)
 
 
-@pytest.mark.parametrize("knots", ["pinned", "rigid"])
+@pytest.mark.parametrize("knots", ["pinned", pytest.param("rigid", marks=pytest.mark.slow)])
 def test_net_against_the_implicit_rods_and_the_lumped_net(knots: str, tmp_path: Path) -> None:
     """Largest mouth area of the 5 x 5 net over 0.6 s (it peaks inside): explicit rods against
     generalized-alpha on the same rods (error-controlled: 1e-5 m on the root-mean-square of the
