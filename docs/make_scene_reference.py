@@ -248,7 +248,20 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
     "loads.ramp": (
         "s", ">= 0. Dynamic runs: the load grows linearly from zero to full over this time; 0 "
         "applies it in full from t = 0. Static runs: leave it at 0 (the load factor does the "
-        "ramping; a ramp longer than 1 s reduces the static load by the factor 1 / ramp)."),
+        "ramping; a ramp longer than 1 s reduces the static load by the factor 1 / ramp). "
+        "Not together with `table`."),
+    "loads.table": (
+        "s, -", "Dynamic runs: the load's factor over time as `[[t, factor], ...]` rows, times "
+        ">= 0 in non-decreasing order, linear between rows, a repeated time a jump (the factor "
+        "after it holds from that time on), the first and last factors held before and after. "
+        "Replaces `ramp`; not set: `ramp` decides. The integrators land on every row's time."),
+    "loads.start": (
+        "s", ">= 0. Dynamic runs: the load acts from this time on (factor 0 before); the "
+        "integrators land on it and a multistep or generalized-alpha scheme starts afresh "
+        "there, so a pulse gives its impulse exactly. Static runs: must stay 0."),
+    "loads.stop": (
+        "s", "> start. Dynamic runs: the load acts until this time (factor 0 from it on), landed "
+        "on like `start`; not set: to the end. Static runs: must be unset."),
     # [[masses]]
     "masses.node": ("", "Node selector."),
     "masses.mass": ("kg", "Point mass added at the node, > 0 (no rotary inertia)."),

@@ -299,16 +299,34 @@ class SupportSpec:
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class LoadSpec:
-    """``[[loads]]``: a dead force and moment on a node, optionally ramped from zero."""
+    """``[[loads]]``: a dead force and moment on a node, times a factor of time: ramped from
+    zero over ``ramp`` seconds, or a piecewise-linear ``table`` of ``[t, factor]`` rows; zero
+    before ``start`` and from ``stop`` on."""
 
     node: str
     force: Vec3 = (0.0, 0.0, 0.0)
     moment: Vec3 = (0.0, 0.0, 0.0)
     ramp: float = 0.0
+    table: tuple[tuple[float, float], ...] | None = None
+    start: float = 0.0
+    stop: float | None = None
 
     def __post_init__(self) -> None:
         _finite_vector(self, "force", "moment")
-        _non_negative(self, "ramp")
+        _non_negative(self, "ramp", "start")
+        if self.stop is not None:
+            require(math.isfinite(self.stop) and self.stop > self.start, "stop", self.stop,
+                    f"must be a finite time > start ({self.start:g} s)")
+        if self.table is not None:
+            rows = self.table
+            require(len(rows) >= 1 and all(len(r) == 2 and all(math.isfinite(c) for c in r)
+                                           for r in rows), "table", [list(r) for r in rows],
+                    "must be a non-empty list of [t, factor] pairs of finite numbers")
+            require(all(rows[k][0] <= rows[k + 1][0] for k in range(len(rows) - 1))
+                    and all(r[0] >= 0.0 for r in rows), "table", [list(r) for r in rows],
+                    "must have times >= 0 in non-decreasing order (a repeated time is a jump)")
+            require(self.ramp == 0.0, "ramp", self.ramp,
+                    "must be 0 (unset) when the load has a table: give one or the other")
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -477,6 +495,13 @@ class Scene:
         body_names = [b.name for b in self.bodies]
         for i, name in enumerate(body_names):
             require(body_names.index(name) == i, f"bodies[{i}].name", name, "must be unique")
+        if self.simulation.type == "static":
+            for i, load in enumerate(self.loads):
+                for key, unset in (("start", load.start == 0.0), ("stop", load.stop is None),
+                                   ("table", load.table is None)):
+                    require(unset, f"loads[{i}].{key}", getattr(load, key),
+                            "must be unset in a static run (it has no time; simulation.load_steps "
+                            "raises the loads)")
 
     @property
     def integrator(self) -> str:

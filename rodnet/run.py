@@ -40,6 +40,7 @@ from rodnet.io.recorder import Recorder, energy_guard
 from rodnet.io.results import output_directory, scene_as_dict, write_npz, write_summary
 from rodnet.io.vtk import VtkSeries
 from rodnet.kernels.cosserat_strain import ROTATION_STOP
+from rodnet.kernels.schedule import break_times, schedule_of
 from rodnet.kernels.threads import use_threads
 from rodnet.metrics import distance, mouth_area, net_metrics
 from rodnet.models.registry import Built, build, unused_keys
@@ -60,6 +61,11 @@ class Prepared:
     scene: Scene
     built: Built
     times: NDArray[np.float64]
+    """Where the integrators stop: the saved frames and the times a load switches."""
+    frames: NDArray[np.float64]
+    """The saved frames' times (load steps of a static run)."""
+    breaks: NDArray[np.float64]
+    """The times a load's factor jumps or kinks, in ``times`` too."""
 
     @property
     def system(self) -> ThreadSystem:
@@ -106,9 +112,22 @@ def prepare(scene: Scene) -> Prepared:
     if scene.simulation.type == "static":
         _check_supported(built.system, built.structure, scene)
         times = np.arange(1, scene.simulation.load_steps + 1) / scene.simulation.load_steps
-    else:
-        times = frame_times(scene.simulation.duration, scene.output.frame_interval)
-    return Prepared(scene, built, times)
+        return Prepared(scene, built, times, times, np.zeros(0))
+    frames = frame_times(scene.simulation.duration, scene.output.frame_interval)
+    breaks = _breaks(frames, scene)
+    return Prepared(scene, built, np.union1d(frames, breaks), frames, breaks)
+
+
+def _breaks(frames: NDArray[np.float64], scene: Scene) -> NDArray[np.float64]:
+    """Every time a load's factor jumps or kinks (window ends, table rows), a break within
+    1e-9 of the frame interval of a frame moved onto it: the steppers land on them, so no step
+    straddles one (a pulse gives its impulse exactly)."""
+    breaks = break_times(schedule_of(scene.loads), float(frames[-1]))
+    if not len(breaks):
+        return breaks
+    nearest = frames[np.abs(breaks[:, None] - frames[None, :]).argmin(axis=1)]
+    return np.unique(np.where(np.abs(breaks - nearest) <= 1e-9 * scene.output.frame_interval,
+                              nearest, breaks))
 
 
 def _check_supported(system: ThreadSystem, structure: Structure, scene: Scene) -> None:
@@ -167,7 +186,8 @@ def _implicit(p: Prepared, recorder: Recorder, bar: Progress, stats: StepStats) 
     extra = {"rho_inf": sim.rho_inf} if "rho_inf" in cls.__dataclass_fields__ else {}
     scheme = cls(p.system, _newton(p.scene), **extra)
     return integrate_implicit(scheme, p.state, p.times, sim.dt, sim.adaptive, recorder, bar,
-                              dt_max=sim.dt_max, error_tolerance=error_tolerance(p), stats=stats)
+                              dt_max=sim.dt_max, error_tolerance=error_tolerance(p), stats=stats,
+                              restarts=frozenset(float(t) for t in p.breaks))
 
 
 INTEGRATORS: dict[str, Integrate] = {
@@ -230,7 +250,7 @@ def run(scene: Scene, directory: str | Path | None = None, *, progress: bool | N
     dynamic = scene.simulation.type == "dynamic"
     checks = ([energy_guard()] if unloaded and dynamic else []) + [p.system.check_frame]
     recorder = Recorder(p.system.frame, vtk, checks, skip_first=not dynamic,
-                        advice=_stability_advice(p))
+                        advice=_stability_advice(p), only={float(t) for t in p.frames})
     bar = Progress(scene.simulation.duration, enabled=progress)
     status, message, stats = "ok", "", StepStats()
     integrate = INTEGRATORS[scene.integrator] if dynamic else _static

@@ -16,6 +16,7 @@ import pytest
 
 from rodnet.kernels import explicit as kx
 from rodnet.kernels.cosserat_compiled import no_rod_elements
+from rodnet.kernels.schedule import schedule_of
 from rodnet.kernels.hinge import no_hinges
 from rodnet.kernels.segments import Segments
 from rodnet.models import registry
@@ -99,7 +100,7 @@ class SpringChain:
         return (kx.Nodes(inv_mass, self.node_mass[:, None] * self.gravity),
                 kx.Rotations(np.zeros((0, 3)), np.zeros((0, 3))),
                 kx.Loads(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)),
-                         np.zeros((0, 3)), np.zeros(0)),
+                         np.zeros((0, 3)), schedule_of([])),
                 springs, no_hinges(), no_rod_elements())
 
     def frame_arrays(self, q, v):

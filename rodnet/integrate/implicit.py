@@ -398,8 +398,9 @@ class GeneralizedAlpha(Scheme):
 
         rate = s.step_rate(s.retract(state.q, dq_known), v_known, h * beta / gamma)
         d = h * h * beta * c
-        return self._equation(state, unpack, M, np.zeros_like(M), d, h * gamma * c, t + h, rate,
-                              [g[free] for g in self._guesses(state)], s.potential_exact)
+        return self._equation(state, unpack, M, np.zeros_like(M), d, h * gamma * c,
+                              step_end(t, h), rate, [g[free] for g in self._guesses(state)],
+                              s.potential_exact)
 
 
 @dataclass
@@ -426,7 +427,7 @@ class BackwardEuler(Scheme):
             return end, end.q, v, dq
 
         rate = _step_rate(self.strain(state), 1.0 / h)
-        return self._equation(state, unpack, M / h, state.v[free], h, 1.0, t + h, rate,
+        return self._equation(state, unpack, M / h, state.v[free], h, 1.0, step_end(t, h), rate,
                               [(state.v + h * g)[free] for g in self._guesses(state)],
                               s.potential_exact)
 
@@ -491,8 +492,9 @@ class BDF2(Scheme):
             previous = s.strains(s.retract(state.q, -state.increment), state.v_previous)[0]
         rate = None if current is None else \
             StepRate(((1.0 + omega) * current - c * previous) / alpha, alpha / h)
-        return self._equation(state, unpack, (alpha / h) * M, v_ref[free], h / alpha, 1.0, t + h,
-                              rate, [(state.v + h * g)[free] for g in self._guesses(state)],
+        return self._equation(state, unpack, (alpha / h) * M, v_ref[free], h / alpha, 1.0,
+                              step_end(t, h), rate,
+                              [(state.v + h * g)[free] for g in self._guesses(state)],
                               s.potential_exact)
 
     def local_error(self, old: MotionState, new: MotionState, h: float) -> float:
@@ -576,6 +578,15 @@ SCHEMES: dict[str, type[Scheme]] = {"bdf2": BDF2, "generalized-alpha": Generaliz
 """``simulation.integrator`` -> the implicit scheme."""
 
 
+def step_end(t: float, h: float) -> float:
+    """The end of the step ``(t, t + h]`` seen from inside it, where the schemes evaluate the
+    loads: a load that switches at ``t + h`` (the steppers land on such times) acts on this
+    step with its value before the switch, so a pulse gives its impulse exactly. The shift,
+    1e-9 of the step, changes a smooth load by 1e-9 of its change over the step."""
+    end = t + h
+    return end - max(1e-9 * h, 4.0 * math.ulp(end))
+
+
 def _step_rate(reference: Any, inv_h: float) -> StepRate | None:
     """The step rate with these reference strains; None for a model without strains."""
     return None if reference is None else StepRate(reference, inv_h)
@@ -612,7 +623,8 @@ def integrate_implicit(scheme: Scheme, state: State, times: NDArray[np.float64],
                        adaptive: bool, on_frame: FrameSink,
                        on_progress: ProgressSink | None = None, dt_max: float | None = None,
                        min_dt: float = 1e-12, error_tolerance: float | None = None,
-                       stats: StepStats | None = None) -> StepStats:
+                       stats: StepStats | None = None,
+                       restarts: frozenset[float] = frozenset()) -> StepStats:
     """March ``state`` from ``times[0]`` to ``times[-1]`` landing on every frame time.
 
     Adaptive: a step whose Newton solve fails is retried with half the step, and the steps after
@@ -620,11 +632,14 @@ def integrate_implicit(scheme: Scheme, state: State, times: NDArray[np.float64],
     ``error_tolerance`` [m] and a scheme that estimates its local error
     (:meth:`Scheme.local_error`), a step whose estimate exceeds the tolerance is rejected and
     every step is resized by ``0.9 (tolerance / error)^(1/3)`` (within 0.2 ... 2) and by at most
-    ``(6 / iterations)^(1/2)`` for the Newton iterations it took (:func:`_resize_factor`). Otherwise, after two steps in a row that each
-    converged within four iterations the step grows by a quarter. Either way the step stays
+    ``(6 / iterations)^(1/2)`` for the Newton iterations it took (:func:`_resize_factor`).
+    Otherwise, after two steps in a row that each converged within four iterations the step
+    grows by a quarter. Either way the step stays
     below ``dt_max`` (default: the interval between saved frames). A step that moves a point
     near a rigid body more than its travel limit is retried shorter; friction work of every
-    accepted step is added to the state.
+    accepted step is added to the state. At the times in ``restarts`` (where a load jumps) the
+    scheme starts afresh (:meth:`Scheme.initial`: consistent accelerations, a multistep
+    scheme's first step), so that no step's formula reaches across the jump.
 
     Raises
     ------
@@ -693,6 +708,8 @@ def integrate_implicit(scheme: Scheme, state: State, times: NDArray[np.float64],
                 on_progress(t, h_try, stats)
         state.q, state.v = motion.q, motion.v
         on_frame(float(t_frame), state)
+        if float(t_frame) in restarts:
+            motion = scheme.initial(motion.q, motion.v, float(t_frame))
     return stats
 
 

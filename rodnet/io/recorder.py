@@ -47,6 +47,9 @@ class Recorder:
         Drop the first frame (a static run's unloaded start is not a load step).
     advice : str
         Appended to the message of a failed check: what the user should change.
+    only : set of float, optional
+        The times to keep; the integrators also stop at others (where a load switches on or
+        off), which are passed over. None: every time handed over.
     """
 
     frame_of: FrameFunction
@@ -54,11 +57,14 @@ class Recorder:
     checks: list[FrameCheck] = field(default_factory=list)
     skip_first: bool = False
     advice: str = ""
+    only: set[float] | None = None
     time: list[float] = field(default_factory=list)
     frames: list[dict[str, Any]] = field(default_factory=list)
     monitors: dict[str, float] = field(default_factory=dict)
 
     def __call__(self, t: float, state: State) -> None:
+        if self.only is not None and t not in self.only:
+            return
         if self.skip_first:
             self.skip_first = False
             return

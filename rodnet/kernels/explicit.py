@@ -41,6 +41,7 @@ from rodnet.kernels.contact_compiled import (ContactData, ContactScratch, accumu
                                              select_bodies)
 from rodnet.kernels.cosserat_compiled import RodElements, rod_forces, scatter_forces
 from rodnet.kernels.rigid_body import advance_bodies
+from rodnet.kernels.schedule import LoadSchedule, load_factor
 from rodnet.kernels.hinge import Hinges
 from rodnet.kernels.segments import Segments, hinge_forces, segment_forces
 
@@ -63,14 +64,14 @@ class Rotations(NamedTuple):
 
 class Loads(NamedTuple):
     """Dead loads: ``nodes`` (L,) position node and ``rot_nodes`` (L,) rotation node of each,
-    ``force`` (L, 3) [N] and ``moment`` (L, 3) [N m] in fixed global directions, ``ramp`` (L,)
-    [s] (0: applied at once)."""
+    ``force`` (L, 3) [N] and ``moment`` (L, 3) [N m] in fixed global directions, times the
+    factors of ``schedule`` (:mod:`rodnet.kernels.schedule`)."""
 
     nodes: np.ndarray
     rot_nodes: np.ndarray
     force: np.ndarray
     moment: np.ndarray
-    ramp: np.ndarray
+    schedule: LoadSchedule
 
 
 class BodyMass(NamedTuple):
@@ -165,11 +166,12 @@ class Marched(NamedTuple):
 
 @numba.njit(inline="always")
 def _apply_loads(t, quat, loads, f_node, m_node):  # pragma: no cover - compiled
-    """Add the ramped dead loads at time ``t`` to the node forces and, for models with rotation
+    """Add the dead loads at time ``t`` to the node forces and, for models with rotation
     nodes, their moments in the body frame, ``R^T m``, to the node moments."""
     with_rotations = m_node.shape[0] > 0
     for j in range(loads.nodes.shape[0]):
-        scale = 1.0 if loads.ramp[j] <= 0.0 else min(1.0, t / loads.ramp[j])
+        sc = loads.schedule
+        scale = load_factor(sc.ptr, sc.times, sc.values, sc.start, sc.stop, j, t)
         a = loads.nodes[j]
         if with_rotations:
             r = loads.rot_nodes[j]

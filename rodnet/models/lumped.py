@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 
 from rodnet.config import Scene
 from rodnet.errors import SceneError
+from rodnet.kernels.schedule import LoadSchedule, factors, schedule_of
 from rodnet.kernels import explicit as kx
 from rodnet.kernels.cable import cable_tangents, element_blocks
 from rodnet.kernels.cosserat_compiled import RodElements, no_rod_elements
@@ -59,8 +60,8 @@ class LumpedModel:
     tension_only : bool
     gravity_force : (N, 3) float
         mass * g [N].
-    load_nodes : (L,) int, load_force : (L, 3) float, load_ramp : (L,) float
-        Dead point loads [N] and their ramp times [s] (0: applied at once).
+    load_nodes : (L,) int, load_force : (L, 3) float, load_schedule : LoadSchedule
+        Dead point loads [N] and their factors over time.
     hinges : rodnet.kernels.explicit.Hinges
         Bending hinges of Kirchhoff threads, ``elements/kirchhoff/FORMULATION.md`` (K1); none for
         the lumped model and cables.
@@ -76,7 +77,7 @@ class LumpedModel:
     gravity_force: FloatArray
     load_nodes: NDArray[np.int64]
     load_force: FloatArray
-    load_ramp: FloatArray
+    load_schedule: LoadSchedule
     hinges: Hinges = field(default_factory=no_hinges, kw_only=True)
 
     @property
@@ -126,11 +127,9 @@ class LumpedModel:
         return axial_force(e, e_rate, self.EA, self.etaA, self.kink_strain, self.tension_only), t
 
     def external_force(self, t: float) -> FloatArray:
-        """Gravity plus ramped dead loads at time ``t`` [N], (N, 3)."""
+        """Gravity plus the dead loads at time ``t`` [N], (N, 3)."""
         f = self.gravity_force.copy()
-        scale = np.where(self.load_ramp > 0.0, np.minimum(1.0, t / np.where(
-            self.load_ramp > 0.0, self.load_ramp, 1.0)), 1.0)
-        np.add.at(f, self.load_nodes, scale[:, None] * self.load_force)
+        np.add.at(f, self.load_nodes, factors(self.load_schedule, t)[:, None] * self.load_force)
         return f
 
     def segment_force(self, x: FloatArray, v: FloatArray,
@@ -260,7 +259,7 @@ class LumpedModel:
         return (kx.Nodes(f(np.repeat(self.inv_mass[:, None], 3, axis=1)), f(self.gravity_force)),
                 kx.Rotations(np.zeros((0, 3)), np.zeros((0, 3))),
                 kx.Loads(f(self.load_nodes), np.zeros(n, np.int64), f(self.load_force),
-                         np.zeros((n, 3)), f(self.load_ramp)),
+                         np.zeros((n, 3)), self.load_schedule),
                 Segments(f(self.segments), f(self.rest_length), f(self.EA), f(self.etaA),
                             float(self.kink_strain), bool(self.tension_only)),
                 Hinges(*(f(a) for a in self.hinges)), no_rod_elements())
@@ -331,11 +330,11 @@ def build_lumped(scene: Scene, structure: Structure,
         gravity_force=mass[:, None] * np.asarray(scene.simulation.gravity)[None, :],
         load_nodes=load_nodes,
         load_force=np.array([l.force for l in scene.loads], float).reshape(-1, 3),
-        load_ramp=np.array([l.ramp for l in scene.loads], float),
+        load_schedule=schedule_of(scene.loads),
         hinges=no_hinges() if hinges is None else hinges)
     for array in (*(getattr(model, name) for name in ("mass", "inv_mass", "EA", "etaA",
-                                                      "gravity_force", "load_nodes", "load_force",
-                                                      "load_ramp")), *model.hinges):
+                                                      "gravity_force", "load_nodes", "load_force")),
+                  *model.load_schedule, *model.hinges):
         array.setflags(write=False)
     if not math.isfinite(model.stable_step()):
         raise SceneError("supports", [s.node for s in scene.supports],

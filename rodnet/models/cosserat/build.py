@@ -9,6 +9,7 @@ from numpy.typing import NDArray
 
 from rodnet.config import Scene
 from rodnet.errors import SceneError
+from rodnet.kernels.schedule import schedule_of
 from rodnet.kernels import so3
 from rodnet.kernels.cosserat_strain import reference_strains
 from rodnet.models.cosserat.geometry import (align_quaternion_signs, node_triads,
@@ -66,7 +67,7 @@ def build_cosserat(scene: Scene, structure: Structure) -> tuple[CosseratModel, C
         gravity=np.asarray(scene.simulation.gravity, float), load_nodes=load_nodes,
         load_force=np.array([l.force for l in scene.loads], float).reshape(-1, 3),
         load_moment=np.array([l.moment for l in scene.loads], float).reshape(-1, 3),
-        load_ramp=np.array([l.ramp for l in scene.loads], float),
+        load_schedule=schedule_of(scene.loads),
         tension_only=scene.model.axial == "tension-only", kink_strain=scene.model.kink_strain,
         end_offset=end_offset, size=structure.size)
     v0 = np.zeros(6 * n)

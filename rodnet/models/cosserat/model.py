@@ -23,6 +23,7 @@ from rodnet.errors import SimulationFailed
 from rodnet.kernels import explicit as kx
 from rodnet.kernels import so3, so3_compiled
 from rodnet.kernels.convex import convex_blocks
+from rodnet.kernels.schedule import LoadSchedule, factors
 from rodnet.kernels.cosserat import (internal_force, internal_force_and_tangents, section_state,
                                      step_potential, strain_energy)
 from rodnet.kernels.cosserat_compiled import SERIES_ARGUMENTS, RodElements, strains_and_rates
@@ -56,7 +57,7 @@ class CosseratModel:
         Lumped mass [kg] and body-frame principal rotary inertia [kg m^2].
     free : (n_dof,) bool
     gravity : (3,) float
-    load_nodes (L,) int, load_force (L, 3), load_moment (L, 3), load_ramp (L,)
+    load_nodes (L,) int, load_force (L, 3), load_moment (L, 3), load_schedule (their time factors)
         Dead loads: global force [N] at a position node, global-axis moment [N m] at the
         rotation node ``load_rot_nodes`` (L,).
     end_offset : (E, 2, 4) float or None
@@ -78,7 +79,7 @@ class CosseratModel:
     load_nodes: NDArray[np.int64]
     load_force: FloatArray
     load_moment: FloatArray
-    load_ramp: FloatArray
+    load_schedule: LoadSchedule
     tension_only: bool
     kink_strain: float
     load_rot_nodes: NDArray[np.int64] | None = None
@@ -169,8 +170,7 @@ class CosseratModel:
         return cached
 
     def _load_scale(self, t: float) -> FloatArray:
-        ramp = self.load_ramp
-        return np.where(ramp > 0.0, np.minimum(1.0, t / np.where(ramp > 0.0, ramp, 1.0)), 1.0)
+        return factors(self.load_schedule, t)
 
     @property
     def _weight(self) -> FloatArray:
@@ -307,7 +307,7 @@ class CosseratModel:
         loads = kx.Loads(f(self.load_nodes, dtype=np.int64), f(self._load_rot, dtype=np.int64),
                          f(self.load_force, dtype=float).reshape(-1, 3),
                          f(self.load_moment, dtype=float).reshape(-1, 3),
-                         f(self.load_ramp, dtype=float))
+                         self.load_schedule)
         no_segments = Segments(np.zeros((0, 2), np.int64), np.zeros(0), np.zeros(0), np.zeros(0),
                                0.0, True)
         return (kx.Nodes(f(inv_mass), f(weight)), kx.Rotations(inertia, f(inv_inertia)), loads,

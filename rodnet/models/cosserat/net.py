@@ -34,6 +34,7 @@ from rodnet.errors import SceneError
 from rodnet.models.cosserat.geometry import align_quaternion_signs, support_dofs
 from rodnet.models.cosserat.model import CosseratModel
 from rodnet.state import Configuration
+from rodnet.kernels.schedule import schedule_of
 from rodnet.kernels import so3
 from rodnet.kernels.cosserat_strain import reference_strains, strain_matrix
 from rodnet.topology import Structure, in_plane_axes
@@ -117,7 +118,7 @@ def build_cosserat_net(scene: Scene, structure: Structure, section: dict[str, Fl
         rotary_inertia=rotary, free=free, gravity=np.asarray(scene.simulation.gravity, float),
         load_nodes=load_nodes, load_force=np.array([l.force for l in scene.loads], float).reshape(-1, 3),
         load_moment=np.array([l.moment for l in scene.loads], float).reshape(-1, 3),
-        load_ramp=np.array([l.ramp for l in scene.loads], float),
+        load_schedule=schedule_of(scene.loads),
         tension_only=scene.model.axial == "tension-only", kink_strain=scene.model.kink_strain,
         load_rot_nodes=np.maximum(node_rotation[load_nodes], 0), end_offset=end_offset,
         size=structure.size)

@@ -1,0 +1,101 @@
+"""Time factors of the dead loads: every load's force and moment times a piecewise-linear
+function of time, zero outside the load's ``[start, stop)`` window.
+
+One mechanism for every ``[[loads]]`` entry: ``ramp = r`` is the table ``[[0, 0], [r, 1]]``, no
+ramp and no table the constant 1, and ``table = [[t, factor], ...]`` is used as given (times
+non-decreasing; a repeated time is a jump, the factor after it holds from that time on; the
+first and last factors hold before and after the table). The window makes the load a pulse:
+the factor is 0 for ``t < start`` and for ``t >= stop``. The same compiled function serves the
+models (NumPy side) and the explicit loop.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import NamedTuple
+
+import numba
+import numpy as np
+
+
+class LoadSchedule(NamedTuple):
+    """The time factors of ``L`` loads: load ``j``'s table is ``times[ptr[j]:ptr[j + 1]]`` [s]
+    with ``values`` (the factors), its window ``[start[j], stop[j])`` [s] (stop ``inf``: on to
+    the end)."""
+
+    ptr: np.ndarray
+    times: np.ndarray
+    values: np.ndarray
+    start: np.ndarray
+    stop: np.ndarray
+
+
+def load_schedule(ramps: Sequence[float], tables: Sequence[Sequence[Sequence[float]] | None],
+                  starts: Sequence[float], stops: Sequence[float | None]) -> LoadSchedule:
+    """The schedule of loads with these ``ramp`` [s], ``table`` (rows ``(t, factor)`` or None),
+    ``start`` and ``stop`` [s] (None: never) settings."""
+    rows: list[list[tuple[float, float]]] = []
+    for ramp, table in zip(ramps, tables):
+        if table is not None:
+            rows.append([(float(t), float(f)) for t, f in table])
+        elif ramp > 0.0:
+            rows.append([(0.0, 0.0), (float(ramp), 1.0)])
+        else:
+            rows.append([(0.0, 1.0)])
+    ptr = np.concatenate([[0], np.cumsum([len(r) for r in rows])]).astype(np.int64)
+    flat = [row for r in rows for row in r]
+    times = np.array([t for t, _ in flat], dtype=np.float64)
+    values = np.array([f for _, f in flat], dtype=np.float64)
+    return LoadSchedule(ptr, times, values, np.array(starts, dtype=np.float64),
+                        np.array([np.inf if s is None else s for s in stops], dtype=np.float64))
+
+
+def schedule_of(loads: Sequence[object]) -> LoadSchedule:
+    """The schedule of the scene's ``[[loads]]`` entries (objects with ``ramp``, ``table``,
+    ``start`` and ``stop``, as :class:`rodnet.config.LoadSpec`)."""
+    return load_schedule([l.ramp for l in loads], [l.table for l in loads],  # type: ignore[attr-defined]
+                         [l.start for l in loads], [l.stop for l in loads])  # type: ignore[attr-defined]
+
+
+def break_times(schedule: LoadSchedule, duration: float) -> np.ndarray:
+    """Times in ``(0, duration)`` where a load's factor has a kink or a jump (window ends and
+    table times), sorted and unique: the time steppers land on them so that no step straddles
+    one."""
+    finite = np.concatenate([schedule.times, schedule.start, schedule.stop])
+    finite = finite[np.isfinite(finite) & (finite > 0.0) & (finite < duration)]
+    return np.unique(finite)
+
+
+@numba.njit(cache=True)
+def load_factor(ptr, times, values, start, stop, j, t):  # pragma: no cover - compiled
+    """The factor of load ``j`` at time ``t`` (see the module docstring)."""
+    if t < start[j] or t >= stop[j]:
+        return 0.0
+    a, b = ptr[j], ptr[j + 1]
+    if t < times[a]:
+        return values[a]
+    k = a
+    while k + 1 < b and times[k + 1] <= t:   # the last row at or before t (after a jump)
+        k += 1
+    if k + 1 == b:
+        return values[k]
+    dt = times[k + 1] - times[k]
+    return values[k] + (values[k + 1] - values[k]) * (t - times[k]) / dt
+
+
+@numba.njit(cache=True)
+def load_factors(ptr, times, values, start, stop, t):  # pragma: no cover - compiled
+    """(L,) factors of every load at time ``t``."""
+    n = start.shape[0]
+    out = np.empty(n)
+    for j in range(n):
+        out[j] = load_factor(ptr, times, values, start, stop, j, t)
+    return out
+
+
+def factors(schedule: LoadSchedule, t: float) -> np.ndarray:
+    """(L,) factors of every load at time ``t`` [s]."""
+    if len(schedule.start) == 0:
+        return np.zeros(0)
+    return load_factors(schedule.ptr, schedule.times, schedule.values, schedule.start,
+                        schedule.stop, float(t))
