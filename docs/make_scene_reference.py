@@ -225,7 +225,15 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
     "rods.elements": (
         "", "Elements along the whole rod, at least one per polyline segment; spread by arc "
         "length, every polyline vertex kept as a node."),
-    "rods.velocity": ("m/s", "Initial velocity of every node of the rod (rotations start at rest)."),
+    "rods.velocity": ("m/s", "Initial velocity of every node of the rod (rotations start at rest "
+                      "unless `angular_velocity` is set)."),
+    "rods.angular_velocity": (
+        "rad/s", "Initial rigid rotation of the whole rod about `rotation_center`, added to "
+        "`velocity`: every node moves at `omega x (x - center)` and, with Cosserat rods, every "
+        "section turns at `omega` too, so the rod starts without strain rate."),
+    "rods.rotation_center": (
+        "m", "The point the `angular_velocity` turns the rod about; not set: the mean of the "
+        "rod's nodes."),
     # [[supports]]
     "supports.node": ("", "Node selector, e.g. `\"beam:start\"`, `\"net:knot:12\"`."),
     "supports.fix": (
@@ -340,6 +348,11 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
         "", "1 to 64. Contact is checked at every node and at `points_per_segment - 1` equally "
         "spaced points inside each segment near a body (B2); the point spacing should not "
         "exceed the smallest body feature that matters (an edge can pass between two points)."),
+    # [initial]
+    "initial.velocities": (
+        "-, m/s", "`[[node, vx, vy, vz], ...]`: initial velocities of the named nodes (node "
+        "selectors as in `[[supports]]`), replacing what the net, the rod or `[[masses]]` set; "
+        "rods and nets."),
     # [output]
     "output.directory": (
         "", "Output directory, relative to the working directory; `-o DIR` on the command line "
@@ -415,6 +428,7 @@ def type_name(hint: Any) -> str:
             return f"array of ({type_name(args[0])})"
         if all(a is float for a in args):
             return f"array of {len(args)} numbers"
+        return "array of [" + ", ".join(type_name(a) for a in args) + "]"
     names = {float: "number", int: "integer", bool: "boolean", str: "string"}
     if hint in names:
         return names[hint]

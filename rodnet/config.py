@@ -254,6 +254,8 @@ class RodSpec:
     points: tuple[Vec3, ...]
     elements: int = 10
     velocity: Vec3 = (0.0, 0.0, 0.0)
+    angular_velocity: Vec3 = (0.0, 0.0, 0.0)
+    rotation_center: Vec3 | None = None
 
     def __post_init__(self) -> None:
         require(self.name != "" and ":" not in self.name, "name", self.name,
@@ -265,7 +267,9 @@ class RodSpec:
                     "consecutive points must differ (zero-length segment)")
         require(self.elements >= len(self.points) - 1, "elements", self.elements,
                 f"must be an integer >= {len(self.points) - 1} (one per polyline segment)")
-        _finite_vector(self, "velocity")
+        _finite_vector(self, "velocity", "angular_velocity")
+        if self.rotation_center is not None:
+            _finite_vector(self, "rotation_center")
 
 
 SUPPORT_DOFS = ("x", "y", "z", "r1", "r2", "r3")
@@ -447,6 +451,18 @@ class ContactSpec:
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
+class InitialSpec:
+    """``[initial]``: the initial state beyond what the net and rods set: node velocities."""
+
+    velocities: tuple[tuple[str, float, float, float], ...] = ()
+
+    def __post_init__(self) -> None:
+        for i, (node, *v) in enumerate(self.velocities):
+            require(all(math.isfinite(c) for c in v), f"velocities[{i}]", [node, *v],
+                    "must be [node, vx, vy, vz] with finite numbers")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
 class OutputSpec:
     """``[output]``: where results go and which ones are written."""
 
@@ -475,6 +491,7 @@ class Scene:
     masses: tuple[MassSpec, ...] = ()
     bodies: tuple[BodySpec, ...] = ()
     contact: ContactSpec | None = None
+    initial: InitialSpec | None = None
     output: OutputSpec = field(default_factory=OutputSpec)
     source: str = "<scene>"
 

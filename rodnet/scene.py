@@ -15,12 +15,13 @@ import typing
 from pathlib import Path
 from typing import Any, Literal
 
-from rodnet.config import (BodySpec, ContactSpec, LoadSpec, MassSpec, MaterialSpec, ModelSpec,
-                           NetSpec, OutputSpec, RodSpec, Scene, SimulationSpec, SupportSpec)
+from rodnet.config import (BodySpec, ContactSpec, InitialSpec, LoadSpec, MassSpec, MaterialSpec,
+                           ModelSpec, NetSpec, OutputSpec, RodSpec, Scene, SimulationSpec,
+                           SupportSpec)
 from rodnet.errors import SceneError
 
 TABLES = {"simulation": SimulationSpec, "model": ModelSpec, "net": NetSpec,
-          "contact": ContactSpec, "output": OutputSpec}
+          "contact": ContactSpec, "initial": InitialSpec, "output": OutputSpec}
 ARRAYS = {"materials": MaterialSpec, "rods": RodSpec, "supports": SupportSpec,
           "loads": LoadSpec, "masses": MassSpec, "bodies": BodySpec}
 NOT_YET: dict[str, str] = {}

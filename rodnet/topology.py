@@ -193,6 +193,8 @@ def build_structure(scene: Scene) -> Structure:
         point_mass[node] += m.mass
         if m.velocity is not None:
             velocities[node] = m.velocity
+    for i, (selector, *v) in enumerate(scene.initial.velocities if scene.initial else ()):
+        velocities[structure.node(selector, f"initial.velocities[{i}]")] = v
     rest_length = np.linalg.norm(structure.rest_positions[structure.segments[:, 1]]
                                  - structure.rest_positions[structure.segments[:, 0]], axis=1)
     object.__setattr__(structure, "rest_length", rest_length)
@@ -237,7 +239,9 @@ def _add_net(b: _Builder, scene: Scene, selectors: dict[str, int]) -> NetLayout:
 def _add_rod(b: _Builder, scene: Scene, rod: RodSpec, selectors: dict[str, int]) -> None:
     points = np.asarray(rod.points, float)
     rest = _spread_by_arc_length(points, rod.elements)
-    vel = np.tile(np.asarray(rod.velocity, float), (len(rest), 1))
+    omega = np.asarray(rod.angular_velocity, float)
+    center = rest.mean(axis=0) if rod.rotation_center is None else np.asarray(rod.rotation_center)
+    vel = np.asarray(rod.velocity, float) + np.cross(omega, rest - center)
     nodes = b.add_nodes(rest, rest.copy(), vel, np.zeros(len(rest)))
     b.add_chain(nodes, [m.name for m in scene.materials].index(rod.material))
     for i, k in enumerate(nodes):

@@ -40,9 +40,9 @@ from rodnet.kernels.contact_compiled import (ContactData, ContactScratch, accumu
                                              body_speed, forget_clearance, largest_speed,
                                              select_bodies)
 from rodnet.kernels.cosserat_compiled import RodElements, rod_forces, scatter_forces
+from rodnet.kernels.hinge import Hinges
 from rodnet.kernels.rigid_body import advance_bodies
 from rodnet.kernels.schedule import LoadSchedule, load_factor
-from rodnet.kernels.hinge import Hinges
 from rodnet.kernels.segments import Segments, hinge_forces, segment_forces
 
 

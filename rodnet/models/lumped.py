@@ -20,11 +20,11 @@ from numpy.typing import NDArray
 
 from rodnet.config import Scene
 from rodnet.errors import SceneError
-from rodnet.kernels.schedule import LoadSchedule, factors, schedule_of
 from rodnet.kernels import explicit as kx
 from rodnet.kernels.cable import cable_tangents, element_blocks
 from rodnet.kernels.cosserat_compiled import RodElements, no_rod_elements
 from rodnet.kernels.hinge import Hinges, hinge_energy, hinge_force, hinge_frequency, no_hinges
+from rodnet.kernels.schedule import LoadSchedule, factors, schedule_of
 from rodnet.kernels.segments import Segments
 from rodnet.kernels.tension import axial_energy, axial_force, step_potential, step_strain_rate
 from rodnet.state import Configuration, Linearization, StepRate

@@ -9,14 +9,14 @@ from numpy.typing import NDArray
 
 from rodnet.config import Scene
 from rodnet.errors import SceneError
-from rodnet.kernels.schedule import schedule_of
 from rodnet.kernels import so3
 from rodnet.kernels.cosserat_strain import reference_strains
+from rodnet.kernels.schedule import schedule_of
 from rodnet.models.cosserat.geometry import (align_quaternion_signs, node_triads,
                                              residual_bending_shear, support_dofs)
 from rodnet.models.cosserat.model import CosseratModel
-from rodnet.state import Configuration
 from rodnet.models.cosserat.net import build_cosserat_net
+from rodnet.state import Configuration
 from rodnet.topology import Structure
 
 FloatArray = NDArray[np.float64]
@@ -72,5 +72,11 @@ def build_cosserat(scene: Scene, structure: Structure) -> tuple[CosseratModel, C
         end_offset=end_offset, size=structure.size)
     v0 = np.zeros(6 * n)
     v0[:3 * n] = structure.velocities.ravel()
+    # a rod's rigid rotation: its sections turn at omega too, R^T omega in their own frame
+    R = so3.quat_to_matrix(quat0)
+    for rod in scene.rods:
+        nodes = [structure.selectors[f"{rod.name}:{k}"] for k in range(rod.elements + 1)]
+        spin = np.einsum("nji,j->ni", R[nodes], np.asarray(rod.angular_velocity, float))
+        v0[3 * n + 3 * np.array(nodes)[:, None] + np.arange(3)] = spin
     v0[~free] = 0.0
     return model, Configuration(structure.positions.copy(), quat0), v0

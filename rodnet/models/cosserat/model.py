@@ -23,12 +23,12 @@ from rodnet.errors import SimulationFailed
 from rodnet.kernels import explicit as kx
 from rodnet.kernels import so3, so3_compiled
 from rodnet.kernels.convex import convex_blocks
-from rodnet.kernels.schedule import LoadSchedule, factors
 from rodnet.kernels.cosserat import (internal_force, internal_force_and_tangents, section_state,
                                      step_potential, strain_energy)
 from rodnet.kernels.cosserat_compiled import SERIES_ARGUMENTS, RodElements, strains_and_rates
 from rodnet.kernels.cosserat_strain import kinematics
 from rodnet.kernels.hinge import Hinges, no_hinges
+from rodnet.kernels.schedule import LoadSchedule, factors
 from rodnet.kernels.segments import Segments
 from rodnet.state import Configuration, Linearization, StepRate
 

@@ -31,12 +31,12 @@ from numpy.typing import NDArray
 
 from rodnet.config import Scene
 from rodnet.errors import SceneError
+from rodnet.kernels import so3
+from rodnet.kernels.cosserat_strain import reference_strains, strain_matrix
+from rodnet.kernels.schedule import schedule_of
 from rodnet.models.cosserat.geometry import align_quaternion_signs, support_dofs
 from rodnet.models.cosserat.model import CosseratModel
 from rodnet.state import Configuration
-from rodnet.kernels.schedule import schedule_of
-from rodnet.kernels import so3
-from rodnet.kernels.cosserat_strain import reference_strains, strain_matrix
 from rodnet.topology import Structure, in_plane_axes
 
 FloatArray = NDArray[np.float64]
