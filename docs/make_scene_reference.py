@@ -349,6 +349,16 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
         "spaced points inside each segment near a body (B2); the point spacing should not "
         "exceed the smallest body feature that matters (an edge can pass between two points)."),
     # [initial]
+    "initial.from": (
+        "", "Folder of an earlier run of the same structure (same scene apart from loads, "
+        "steps, integrator, output and bodies) whose saved state starts this run: positions, "
+        "rotations, velocities and, for the explicit integrator, the bodies. Time continues from "
+        "the saved frame's time to `simulation.duration` (the end time). A static run's result "
+        "starts a dynamic run from its equilibrium. Not set: the scene's own initial state."),
+    "initial.frame": (
+        "", "Which saved frame of `from`: an index, negative from the end (-1: the last)."),
+    "initial.time": (
+        "s", "Instead of `frame`: the saved frame at this time (within 1e-9 s)."),
     "initial.velocities": (
         "-, m/s", "`[[node, vx, vy, vz], ...]`: initial velocities of the named nodes (node "
         "selectors as in `[[supports]]`), replacing what the net, the rod or `[[masses]]` set; "
@@ -462,7 +472,8 @@ def sections() -> list[tuple[str, str, type]]:
 
 def keys() -> list[str]:
     """Every ``section.key`` the scene dataclasses define."""
-    return [f"{name}.{f.name}" for name, _, cls in sections() for f in dataclasses.fields(cls)]
+    return [f"{name}.{config.toml_key(f.name)}" for name, _, cls in sections()
+            for f in dataclasses.fields(cls)]
 
 
 def missing_descriptions() -> list[str]:
@@ -507,14 +518,15 @@ def render() -> str:
         parts.append(f"{doc}\n")
         rows = ["| key | type | default | unit | description |", "|---|---|---|---|---|"]
         for f in dataclasses.fields(cls):
-            unit, text = DESCRIPTIONS.get(f"{name}.{f.name}", ("", "(no description)"))
+            key = config.toml_key(f.name)
+            unit, text = DESCRIPTIONS.get(f"{name}.{key}", ("", "(no description)"))
             default = default_text(f)
             default = default if default in ("required", "not set") else f"`{_cell(default)}`"
             kind = type_name(hints[f.name])
             if f"{name}.{f.name}" in CHOICES:  # names registered by the models and integrators
                 kind = " or ".join(toml_value(c) for c in CHOICES[f"{name}.{f.name}"]) + \
                     (" (optional)" if kind.endswith("(optional)") else "")
-            rows.append(f"| `{f.name}` | {_cell(kind)} | {default} | "
+            rows.append(f"| `{key}` | {_cell(kind)} | {default} | "
                         f"{_cell(unit)} | {_cell(text)} |")
         parts.append("\n".join(rows) + "\n")
         derived = _derived(cls)

@@ -450,16 +450,33 @@ class ContactSpec:
                 "must be an integer in 1 .. 64")
 
 
+def toml_key(field_name: str) -> str:
+    """The TOML name of a field: the field's, without the trailing underscore that escapes a
+    Python keyword (``from_`` is ``from``)."""
+    return field_name.rstrip("_")
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
 class InitialSpec:
-    """``[initial]``: the initial state beyond what the net and rods set: node velocities."""
+    """``[initial]``: the initial state beyond what the net and rods set: a saved state of an
+    earlier run (``from``), and node velocities."""
 
+    from_: str | None = None
+    frame: int = -1
+    time: float | None = None
     velocities: tuple[tuple[str, float, float, float], ...] = ()
 
     def __post_init__(self) -> None:
         for i, (node, *v) in enumerate(self.velocities):
             require(all(math.isfinite(c) for c in v), f"velocities[{i}]", [node, *v],
                     "must be [node, vx, vy, vz] with finite numbers")
+        if self.from_ is None:
+            require(self.frame == -1 and self.time is None, "frame" if self.time is None
+                    else "time", self.time if self.time is not None else self.frame,
+                    "needs initial.from (the folder of the run to start from)")
+        if self.time is not None:
+            _non_negative(self, "time")
+            require(self.frame == -1, "frame", self.frame, "must be unset when time is given")
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

@@ -13,6 +13,7 @@ and its initial state, :data:`INTEGRATORS` picks the integrator by name, and the
 
 from __future__ import annotations
 
+import dataclasses
 import signal
 import threading
 import time
@@ -37,6 +38,7 @@ from rodnet.integrate.newton import NewtonOptions
 from rodnet.integrate.rk45 import integrate_rk45
 from rodnet.integrate.static import solve_static
 from rodnet.io.recorder import Recorder, energy_guard
+from rodnet.io.restart import restarted, saved_frame
 from rodnet.io.results import output_directory, scene_as_dict, write_npz, write_summary
 from rodnet.io.vtk import VtkSeries
 from rodnet.kernels.cosserat_strain import ROTATION_STOP
@@ -114,8 +116,31 @@ def prepare(scene: Scene) -> Prepared:
         times = np.arange(1, scene.simulation.load_steps + 1) / scene.simulation.load_steps
         return Prepared(scene, built, times, times, np.zeros(0))
     frames = frame_times(scene.simulation.duration, scene.output.frame_interval)
+    if scene.initial is not None and scene.initial.from_ is not None:
+        built, frames = _restart(scene, built, frames)
     breaks = _breaks(frames, scene)
     return Prepared(scene, built, np.union1d(frames, breaks), frames, breaks)
+
+
+def _restart(scene: Scene, built: Built, frames: NDArray[np.float64]
+             ) -> tuple[Built, NDArray[np.float64]]:
+    """``built`` starting from the saved frame ``[initial]`` names, and the frame times from
+    that frame's time on (the original grid where it lies on it)."""
+    assert scene.initial is not None
+    t0, frame = saved_frame(scene.initial)
+    if t0 >= frames[-1] - 1e-9 * scene.output.frame_interval:
+        raise SceneError("simulation.duration", scene.simulation.duration,
+                         f"must be later than the saved frame's time {t0:g} s that the run "
+                         "starts from (initial.from): duration is the end time")
+    contact = built.system.contact
+    inertia = np.zeros((0, 3, 3)) if contact is None else np.where(
+        contact.bodies.free[:, None, None], contact.bodies.inertia, 0.0)
+    state = restarted(built.state, frame, inertia, built.system.n_moving > 0,
+                      str(scene.initial.from_))
+    on_grid = np.abs(frames - t0) <= 1e-9 * scene.output.frame_interval
+    later = frames[frames > t0 + 1e-9 * scene.output.frame_interval]
+    start = frames[on_grid][:1] if on_grid.any() else np.array([t0])
+    return dataclasses.replace(built, state=state), np.concatenate([start, later])
 
 
 def _breaks(frames: NDArray[np.float64], scene: Scene) -> NDArray[np.float64]:

@@ -17,7 +17,7 @@ from typing import Any, Literal
 
 from rodnet.config import (BodySpec, ContactSpec, InitialSpec, LoadSpec, MassSpec, MaterialSpec,
                            ModelSpec, NetSpec, OutputSpec, RodSpec, Scene, SimulationSpec,
-                           SupportSpec)
+                           SupportSpec, toml_key)
 from rodnet.errors import SceneError
 
 TABLES = {"simulation": SimulationSpec, "model": ModelSpec, "net": NetSpec,
@@ -114,15 +114,16 @@ def _expect(ok: bool, key: str, value: Any, allowed: str) -> None:
 def _build(cls: type, table: dict[str, Any], path: str) -> Any:
     """Instantiate dataclass ``cls`` from ``table``, checking keys and types."""
     hints = typing.get_type_hints(cls)
-    fields = {f.name: f for f in dataclasses.fields(cls)}
+    fields = {toml_key(f.name): f for f in dataclasses.fields(cls)}
     kwargs = {}
     for key, value in table.items():
         if key not in fields:
             raise SceneError(f"{path}.{key}", value, f"unknown key in [{path.split('[')[0]}]; "
                              f"allowed: {sorted(fields)}")
-        kwargs[key] = _convert(hints[key], value, f"{path}.{key}")
+        name = fields[key].name
+        kwargs[name] = _convert(hints[name], value, f"{path}.{key}")
     missing = [n for n, f in fields.items() if f.default is dataclasses.MISSING
-               and f.default_factory is dataclasses.MISSING and n not in kwargs]
+               and f.default_factory is dataclasses.MISSING and f.name not in kwargs]
     if missing:
         raise SceneError(f"{path}.{missing[0]}", None, "is required")
     try:

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from rodnet.config import Scene
+from rodnet.config import Scene, toml_key
 from rodnet.errors import SceneError
 
 
@@ -52,7 +52,7 @@ def scene_as_dict(scene: Scene, unused: tuple[str, ...] = ()) -> dict[str, Any]:
     out.pop("source")
     def clean(value: Any) -> Any:
         if isinstance(value, dict):
-            return {k: clean(v) for k, v in value.items() if v is not None}
+            return {toml_key(k): clean(v) for k, v in value.items() if v is not None}
         if isinstance(value, (list, tuple)):
             return [clean(v) for v in value]
         return value

@@ -458,11 +458,15 @@ class ThreadSystem:
     # --- output --------------------------------------------------------------------------
 
     def frame(self, t: float, state: State) -> dict[str, Any]:
-        """What a saved frame holds: the model's arrays, the kinetic and elastic energy [J] and,
-        with bodies, the contact and body arrays of :meth:`ContactTerm.frame_arrays`."""
+        """What a saved frame holds: the model's arrays, every rotation node's quaternion and
+        body-frame angular velocity (models with rotations), the kinetic and elastic energy [J]
+        and, with bodies, the contact and body arrays of :meth:`ContactTerm.frame_arrays`."""
         if self.n_moving:  # the bodies' motion from the unknowns, for the frame and the state
             state.bodies = self._motion(state.q, state.v)
         frame = self.model.frame_arrays(state.q, state.v[:self.model.n_dof])
+        if len(state.q.quat):   # the whole rotational state, for a later run to start from
+            frame["rotation_node_quaternions"] = state.q.quat.copy()
+            frame["rotation_node_spins"] = state.spin.copy()
         energy = self.energy(t, state)
         frame["kinetic_energy"], frame["elastic_energy"] = energy["kinetic"], energy["elastic"]
         if self.contact is not None and state.bodies is not None:

@@ -1,0 +1,104 @@
+"""Starting from a saved frame of an earlier run: the rest of the run is reproduced, a static
+equilibrium stays put in a dynamic run, and an incompatible folder is refused by key."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rodnet.errors import SceneError
+from rodnet.run import run
+from rodnet.scene import scene_from_toml
+from tests.conftest import small_net_toml
+
+THREAD = """
+[simulation]
+type = "{kind}"
+duration = {duration}
+gravity = [0.0, 0.0, -9.81]
+integrator = "{integrator}"
+[model]
+type = "{model}"
+[[materials]]
+name = "kevlar"
+density = 1440.0
+youngs_modulus = 7.0e10
+poisson_ratio = 0.36
+diameter = 1.0e-3
+viscosity = 2.0e6
+[[rods]]
+name = "thread"
+material = "kevlar"
+points = [[0.0, 0.0, 0.0], [0.6, 0.0, 0.0], [1.0, 0.0, 0.3]]
+elements = 10
+[[supports]]
+node = "thread:start"
+fix = "{fix}"
+{extra}
+[output]
+vtk = false
+frame_interval = 0.02
+"""
+
+
+def _thread(**kw: object) -> str:
+    values = dict(kind="dynamic", duration=0.2, integrator="explicit", model="cosserat",
+                  fix="clamp", extra="")
+    values.update(kw)
+    return THREAD.format(**values)
+
+
+@pytest.mark.parametrize("text", [small_net_toml(duration=0.3), _thread()],
+                         ids=["lumped net", "cosserat thread"])
+def test_a_restart_from_frame_k_reproduces_the_rest_of_the_run(tmp_path: Path,
+                                                               text: str) -> None:
+    whole = run(scene_from_toml(text), tmp_path / "whole", progress=False)
+    assert whole.status == "ok", whole.message
+    k = 6
+    again = text.replace("[output]", f'[initial]\nfrom = "{tmp_path / "whole"}"\nframe = {k}\n'
+                         "[output]")
+    rest = run(scene_from_toml(again), tmp_path / "rest", progress=False)
+    assert rest.status == "ok", rest.message
+    a, b = whole.arrays, rest.arrays
+    np.testing.assert_array_equal(b["time"], a["time"][k:])
+    scale = np.abs(a["positions"]).max()
+    assert np.abs(b["positions"] - a["positions"][k:]).max() <= 1e-12 * scale
+    if "rotation_node_quaternions" in a:
+        assert np.abs(b["rotation_node_quaternions"] - a["rotation_node_quaternions"][k:]).max() < 1e-12
+
+
+def test_a_static_equilibrium_starts_a_dynamic_run_at_rest(tmp_path: Path) -> None:
+    """A clamped thread sagging under its weight: the dynamic run from the static solution
+    (same gravity) stays where it is."""
+    static = run(scene_from_toml(_thread(kind="static", integrator="bdf2")), tmp_path / "static",
+                 progress=False)
+    assert static.status == "ok", static.message
+    text = _thread(duration=1.0, integrator="bdf2",
+                   extra=f'[initial]\nfrom = "{tmp_path / "static"}"')
+    dynamic = run(scene_from_toml(text), tmp_path / "dynamic", progress=False)
+    assert dynamic.status == "ok", dynamic.message
+    x = dynamic.arrays["positions"]
+    assert dynamic.arrays["time"][0] == 0.0 and dynamic.arrays["time"][-1] == 1.0
+    np.testing.assert_array_equal(x[0], static.arrays["positions"][-1])
+    drift = np.abs(x - x[0]).max()
+    assert drift < 1e-9 * 1.0, drift   # 1.0 m: the thread's length scale
+
+
+def test_incompatible_or_missing_runs_are_refused_by_key(tmp_path: Path) -> None:
+    whole = run(scene_from_toml(_thread(duration=0.04)), tmp_path / "rod", progress=False)
+    assert whole.status == "ok"
+    cases = [(_thread(extra=f'[initial]\nfrom = "{tmp_path / "nothing"}"'), "initial.from"),
+             (_thread(extra=f'[initial]\nfrom = "{tmp_path / "rod"}"\nframe = 9'), "initial.frame"),
+             (_thread(extra=f'[initial]\nfrom = "{tmp_path / "rod"}"\ntime = 0.5'), "initial.time"),
+             (_thread(model="lumped", extra=f'[initial]\nfrom = "{tmp_path / "rod"}"'),
+              "initial.from"),
+             (_thread(duration=0.04, extra=f'[initial]\nfrom = "{tmp_path / "rod"}"'),
+              "simulation.duration"),
+             (_thread(extra="[initial]\nframe = 2"), "initial.frame")]
+    for text, key in cases:
+        with pytest.raises(SceneError) as err:
+            run(scene_from_toml(text), tmp_path / "out", progress=False)
+        assert key in str(err.value), (key, str(err.value))
+        assert not (tmp_path / "out").exists()
