@@ -270,6 +270,17 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
     "loads.stop": (
         "s", "> start. Dynamic runs: the load acts until this time (factor 0 from it on), landed "
         "on like `start`; not set: to the end. Static runs: must be unset."),
+    # [[line_loads]]
+    "line_loads.on": ("", "A rod's `name`, or `\"net\"` for every thread of the net (corner "
+                      "threads included)."),
+    "line_loads.force_per_length": (
+        "N/m", "Dead force per unit of stress-free length, fixed global direction; lumped on "
+        "the nodes, each element's `q l0` half and half on its ends (the consistent load of a "
+        "linear element)."),
+    "line_loads.ramp": ("s", "As `[[loads]] ramp`."),
+    "line_loads.table": ("s, -", "As `[[loads]] table`."),
+    "line_loads.start": ("s", "As `[[loads]] start`."),
+    "line_loads.stop": ("s", "As `[[loads]] stop`."),
     # [[masses]]
     "masses.node": ("", "Node selector."),
     "masses.mass": ("kg", "Point mass added at the node, > 0 (no rotary inertia)."),

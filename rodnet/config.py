@@ -317,20 +317,43 @@ class LoadSpec:
 
     def __post_init__(self) -> None:
         _finite_vector(self, "force", "moment")
-        _non_negative(self, "ramp", "start")
-        if self.stop is not None:
-            require(math.isfinite(self.stop) and self.stop > self.start, "stop", self.stop,
-                    f"must be a finite time > start ({self.start:g} s)")
-        if self.table is not None:
-            rows = self.table
-            require(len(rows) >= 1 and all(len(r) == 2 and all(math.isfinite(c) for c in r)
-                                           for r in rows), "table", [list(r) for r in rows],
-                    "must be a non-empty list of [t, factor] pairs of finite numbers")
-            require(all(rows[k][0] <= rows[k + 1][0] for k in range(len(rows) - 1))
-                    and all(r[0] >= 0.0 for r in rows), "table", [list(r) for r in rows],
-                    "must have times >= 0 in non-decreasing order (a repeated time is a jump)")
-            require(self.ramp == 0.0, "ramp", self.ramp,
-                    "must be 0 (unset) when the load has a table: give one or the other")
+        _check_timing(self)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class LineLoadSpec:
+    """``[[line_loads]]``: a dead force per unit length along a rod or every thread of the
+    net, lumped on the nodes (half of each element's share at each end), with the time factor
+    of ``[[loads]]``."""
+
+    on: str
+    force_per_length: Vec3
+    ramp: float = 0.0
+    table: tuple[tuple[float, float], ...] | None = None
+    start: float = 0.0
+    stop: float | None = None
+
+    def __post_init__(self) -> None:
+        _finite_vector(self, "force_per_length")
+        _check_timing(self)
+
+
+def _check_timing(load: LoadSpec | LineLoadSpec) -> None:
+    """The ``ramp``, ``table``, ``start`` and ``stop`` of a load."""
+    _non_negative(load, "ramp", "start")
+    if load.stop is not None:
+        require(math.isfinite(load.stop) and load.stop > load.start, "stop", load.stop,
+                f"must be a finite time > start ({load.start:g} s)")
+    if load.table is not None:
+        rows = load.table
+        require(len(rows) >= 1 and all(len(r) == 2 and all(math.isfinite(c) for c in r)
+                                       for r in rows), "table", [list(r) for r in rows],
+                "must be a non-empty list of [t, factor] pairs of finite numbers")
+        require(all(rows[k][0] <= rows[k + 1][0] for k in range(len(rows) - 1))
+                and all(r[0] >= 0.0 for r in rows), "table", [list(r) for r in rows],
+                "must have times >= 0 in non-decreasing order (a repeated time is a jump)")
+        require(load.ramp == 0.0, "ramp", load.ramp,
+                "must be 0 (unset) when the load has a table: give one or the other")
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -505,6 +528,7 @@ class Scene:
     rods: tuple[RodSpec, ...] = ()
     supports: tuple[SupportSpec, ...] = ()
     loads: tuple[LoadSpec, ...] = ()
+    line_loads: tuple[LineLoadSpec, ...] = ()
     masses: tuple[MassSpec, ...] = ()
     bodies: tuple[BodySpec, ...] = ()
     contact: ContactSpec | None = None
@@ -529,11 +553,17 @@ class Scene:
         body_names = [b.name for b in self.bodies]
         for i, name in enumerate(body_names):
             require(body_names.index(name) == i, f"bodies[{i}].name", name, "must be unique")
+        for i, line in enumerate(self.line_loads):
+            require(line.on in rod_names or (line.on == "net" and self.net is not None),
+                    f"line_loads[{i}].on", line.on,
+                    f"must name a rod {rod_names} or be \"net\" (with a [net])")
         if self.simulation.type == "static":
-            for i, load in enumerate(self.loads):
+            timed = [(f"loads[{i}]", l) for i, l in enumerate(self.loads)] + \
+                [(f"line_loads[{i}]", l) for i, l in enumerate(self.line_loads)]
+            for name, load in timed:
                 for key, unset in (("start", load.start == 0.0), ("stop", load.stop is None),
                                    ("table", load.table is None)):
-                    require(unset, f"loads[{i}].{key}", getattr(load, key),
+                    require(unset, f"{name}.{key}", getattr(load, key),
                             "must be unset in a static run (it has no time; simulation.load_steps "
                             "raises the loads)")
 

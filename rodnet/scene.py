@@ -15,15 +15,16 @@ import typing
 from pathlib import Path
 from typing import Any, Literal
 
-from rodnet.config import (BodySpec, ContactSpec, InitialSpec, LoadSpec, MassSpec, MaterialSpec,
-                           ModelSpec, NetSpec, OutputSpec, RodSpec, Scene, SimulationSpec,
-                           SupportSpec, toml_key)
+from rodnet.config import (BodySpec, ContactSpec, InitialSpec, LineLoadSpec, LoadSpec, MassSpec,
+                           MaterialSpec, ModelSpec, NetSpec, OutputSpec, RodSpec, Scene,
+                           SimulationSpec, SupportSpec, toml_key)
 from rodnet.errors import SceneError
 
 TABLES = {"simulation": SimulationSpec, "model": ModelSpec, "net": NetSpec,
           "contact": ContactSpec, "initial": InitialSpec, "output": OutputSpec}
 ARRAYS = {"materials": MaterialSpec, "rods": RodSpec, "supports": SupportSpec,
-          "loads": LoadSpec, "masses": MassSpec, "bodies": BodySpec}
+          "loads": LoadSpec, "line_loads": LineLoadSpec, "masses": MassSpec,
+          "bodies": BodySpec}
 NOT_YET: dict[str, str] = {}
 """Sections of SCENE_FORMAT.md this version refuses (section -> what it describes)."""
 

@@ -40,7 +40,10 @@ def solve_static(system: System, state: State, load_steps: int, options: NewtonO
     q0 = state.q
     q = q0
     loads = system.generalized_force(q0, zero, STATIC_TIME, 1.0) - system.generalized_force(q0, zero, STATIC_TIME, 0.0)
-    scale = max(float(np.max(np.abs(loads))), 1e-2 * system.force_scale)
+    # Newton's tolerance is relative to the loads (a light load on a stiff thread is solved to
+    # the same relative accuracy as a heavy one); without loads, to the structure's forces
+    largest = float(np.max(np.abs(loads), initial=0.0))
+    scale = largest if largest > 0.0 else 1e-2 * system.force_scale
     state.v = zero
     on_frame(0.0, state)
     done, target_steps = 0.0, [k / load_steps for k in range(1, load_steps + 1)]

@@ -11,6 +11,7 @@ models (NumPy side) and the explicit loop.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import NamedTuple
 
@@ -69,7 +70,7 @@ def break_times(schedule: LoadSchedule, duration: float) -> np.ndarray:
 @numba.njit(cache=True)
 def load_factor(ptr, times, values, start, stop, j, t):  # pragma: no cover - compiled
     """The factor of load ``j`` at time ``t`` (see the module docstring)."""
-    if t < start[j] or t >= stop[j]:
+    if t < start[j] or (t >= stop[j] and stop[j] < math.inf):   # a static run's t is inf
         return 0.0
     a, b = ptr[j], ptr[j + 1]
     if t < times[a]:

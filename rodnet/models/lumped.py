@@ -24,9 +24,10 @@ from rodnet.kernels import explicit as kx
 from rodnet.kernels.cable import cable_tangents, element_blocks
 from rodnet.kernels.cosserat_compiled import RodElements, no_rod_elements
 from rodnet.kernels.hinge import Hinges, hinge_energy, hinge_force, hinge_frequency, no_hinges
-from rodnet.kernels.schedule import LoadSchedule, factors, schedule_of
+from rodnet.kernels.schedule import LoadSchedule, factors
 from rodnet.kernels.segments import Segments
 from rodnet.kernels.tension import axial_energy, axial_force, step_potential, step_strain_rate
+from rodnet.models.loads import dead_loads
 from rodnet.state import Configuration, Linearization, StepRate
 from rodnet.topology import Structure
 
@@ -320,17 +321,14 @@ def build_lumped(scene: Scene, structure: Structure,
         if any(load.moment):
             raise SceneError(f"loads[{i}].moment", load.moment,
                              "a lumped model has no rotations; moments need model.type = 'cosserat'")
-    load_nodes = np.array([structure.node(l.node, f"loads[{i}].node")
-                           for i, l in enumerate(scene.loads)], dtype=np.int64)
+    loads = dead_loads(scene, structure)
     model = LumpedModel(
         structure=structure, mass=mass, inv_mass=inv_mass,
         EA=np.array([m.EA for m in materials])[structure.material],
         etaA=np.array([m.damping_coefficient for m in materials])[structure.material],
         kink_strain=scene.model.kink_strain, tension_only=scene.model.axial == "tension-only",
         gravity_force=mass[:, None] * np.asarray(scene.simulation.gravity)[None, :],
-        load_nodes=load_nodes,
-        load_force=np.array([l.force for l in scene.loads], float).reshape(-1, 3),
-        load_schedule=schedule_of(scene.loads),
+        load_nodes=loads.nodes, load_force=loads.force, load_schedule=loads.schedule,
         hinges=no_hinges() if hinges is None else hinges)
     for array in (*(getattr(model, name) for name in ("mass", "inv_mass", "EA", "etaA",
                                                       "gravity_force", "load_nodes", "load_force")),

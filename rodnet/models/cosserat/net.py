@@ -33,9 +33,9 @@ from rodnet.config import Scene
 from rodnet.errors import SceneError
 from rodnet.kernels import so3
 from rodnet.kernels.cosserat_strain import reference_strains, strain_matrix
-from rodnet.kernels.schedule import schedule_of
 from rodnet.models.cosserat.geometry import align_quaternion_signs, support_dofs
 from rodnet.models.cosserat.model import CosseratModel
+from rodnet.models.loads import dead_loads
 from rodnet.state import Configuration
 from rodnet.topology import Structure, in_plane_axes
 
@@ -105,8 +105,8 @@ def build_cosserat_net(scene: Scene, structure: Structure, section: dict[str, Fl
     for i, s in enumerate(scene.supports):
         node = structure.node(s.node, f"supports[{i}].node")
         free[support_dofs(s.fixed, node, node_rotation[node], n_nodes)] = False
-    load_nodes = np.array([structure.node(l.node, f"loads[{i}].node") for i, l in enumerate(scene.loads)],
-                          dtype=np.int64)
+    loads = dead_loads(scene, structure)
+    load_nodes = loads.nodes
     for i, l in enumerate(scene.loads):
         if any(l.moment) and node_rotation[load_nodes[i]] < 0:
             raise SceneError(f"loads[{i}].moment", l.moment, "this node has no single rotation "
@@ -116,9 +116,8 @@ def build_cosserat_net(scene: Scene, structure: Structure, section: dict[str, Fl
         reference_strain=reference_strains(le, structure.rest_positions[seg], quat_ends),
         stiffness=section["stiffness"], tau=section["tau"], node_mass=node_mass,
         rotary_inertia=rotary, free=free, gravity=np.asarray(scene.simulation.gravity, float),
-        load_nodes=load_nodes, load_force=np.array([l.force for l in scene.loads], float).reshape(-1, 3),
-        load_moment=np.array([l.moment for l in scene.loads], float).reshape(-1, 3),
-        load_schedule=schedule_of(scene.loads),
+        load_nodes=load_nodes, load_force=loads.force, load_moment=loads.moment,
+        load_schedule=loads.schedule,
         tension_only=scene.model.axial == "tension-only", kink_strain=scene.model.kink_strain,
         load_rot_nodes=np.maximum(node_rotation[load_nodes], 0), end_offset=end_offset,
         size=structure.size)
