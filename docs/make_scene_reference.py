@@ -79,6 +79,12 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
         "m/s^2", "Uniform gravitational acceleration; node `i` gets the force `m_i g`. Static runs "
         "of Cosserat rods apply it in full at every load step (the load factor scales `[[loads]]` "
         "only)."),
+    "simulation.gravity_ramp": (
+        "s", ">= 0. Dynamic runs: gravity grows linearly from zero to full over this time (as "
+        "`[[loads]] ramp`); 0: in full from t = 0. Not in static runs or with `[[bodies]]`."),
+    "simulation.gravity_table": (
+        "s, -", "Dynamic runs: gravity's factor over time as `[[t, factor], ...]` rows (as "
+        "`[[loads]] table`); replaces `gravity_ramp`. Not in static runs or with `[[bodies]]`."),
     "simulation.load_steps": (
         "", "Static runs: number of equal load increments, >= 1; each saves one frame. An "
         "increment whose Newton solve fails is split in two, up to 6 times. The solution does not "

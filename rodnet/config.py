@@ -73,6 +73,8 @@ class SimulationSpec:
     integrator: str | None = None
     rho_inf: float = 0.7
     gravity: Vec3 = (0.0, 0.0, 0.0)
+    gravity_ramp: float = 0.0
+    gravity_table: tuple[tuple[float, float], ...] | None = None
     load_steps: int = 10
     explicit_safety: float = 0.5
     rotary_inertia_scaling: bool = True
@@ -91,6 +93,16 @@ class SimulationSpec:
                 "must be in (0, 1]: the fraction of the explicit stability limit used as step")
         require(self.rtol < 1.0, "rtol", self.rtol, "must be < 1 (a relative tolerance)")
         _finite_vector(self, "gravity")
+        _non_negative(self, "gravity_ramp")
+        if self.gravity_table is not None:
+            _check_table(self.gravity_table, "gravity_table")
+            require(self.gravity_ramp == 0.0, "gravity_ramp", self.gravity_ramp,
+                    "must be 0 (unset) when gravity_table is given: give one or the other")
+
+    @property
+    def gravity_scheduled(self) -> bool:
+        """Whether gravity has a time factor (a ramp or a table)."""
+        return self.gravity_ramp > 0.0 or self.gravity_table is not None
 
 
 SHEAR_CORRECTIONS = ("none", "residual-bending")
@@ -345,15 +357,19 @@ def _check_timing(load: LoadSpec | LineLoadSpec) -> None:
         require(math.isfinite(load.stop) and load.stop > load.start, "stop", load.stop,
                 f"must be a finite time > start ({load.start:g} s)")
     if load.table is not None:
-        rows = load.table
-        require(len(rows) >= 1 and all(len(r) == 2 and all(math.isfinite(c) for c in r)
-                                       for r in rows), "table", [list(r) for r in rows],
-                "must be a non-empty list of [t, factor] pairs of finite numbers")
-        require(all(rows[k][0] <= rows[k + 1][0] for k in range(len(rows) - 1))
-                and all(r[0] >= 0.0 for r in rows), "table", [list(r) for r in rows],
-                "must have times >= 0 in non-decreasing order (a repeated time is a jump)")
+        _check_table(load.table, "table")
         require(load.ramp == 0.0, "ramp", load.ramp,
                 "must be 0 (unset) when the load has a table: give one or the other")
+
+
+def _check_table(rows: tuple[tuple[float, float], ...], key: str) -> None:
+    """A table of ``[t, factor]`` rows."""
+    require(len(rows) >= 1 and all(len(r) == 2 and all(math.isfinite(c) for c in r)
+                                   for r in rows), key, [list(r) for r in rows],
+            "must be a non-empty list of [t, factor] pairs of finite numbers")
+    require(all(rows[k][0] <= rows[k + 1][0] for k in range(len(rows) - 1))
+            and all(r[0] >= 0.0 for r in rows), key, [list(r) for r in rows],
+            "must have times >= 0 in non-decreasing order (a repeated time is a jump)")
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -557,6 +573,15 @@ class Scene:
             require(line.on in rod_names or (line.on == "net" and self.net is not None),
                     f"line_loads[{i}].on", line.on,
                     f"must name a rod {rod_names} or be \"net\" (with a [net])")
+        if self.simulation.gravity_scheduled:
+            key = "simulation.gravity_ramp" if self.simulation.gravity_table is None \
+                else "simulation.gravity_table"
+            value = self.simulation.gravity_ramp if self.simulation.gravity_table is None \
+                else [list(r) for r in self.simulation.gravity_table]
+            require(self.simulation.type == "dynamic", key, value,
+                    "must be unset in a static run (simulation.load_steps raises gravity)")
+            require(not self.bodies, key, value, "must be unset in a scene with [[bodies]] (the "
+                    "bodies' weight has no time factor in this version)")
         if self.simulation.type == "static":
             timed = [(f"loads[{i}]", l) for i, l in enumerate(self.loads)] + \
                 [(f"line_loads[{i}]", l) for i, l in enumerate(self.line_loads)]

@@ -45,6 +45,7 @@ from rodnet.kernels.cosserat_strain import ROTATION_STOP
 from rodnet.kernels.schedule import break_times, schedule_of
 from rodnet.kernels.threads import use_threads
 from rodnet.metrics import distance, mouth_area, net_metrics
+from rodnet.models.loads import timings
 from rodnet.models.registry import Built, build, unused_keys
 from rodnet.models.system import ThreadSystem
 from rodnet.progress import Progress
@@ -147,7 +148,7 @@ def _breaks(frames: NDArray[np.float64], scene: Scene) -> NDArray[np.float64]:
     """Every time a load's factor jumps or kinks (window ends, table rows), a break within
     1e-9 of the frame interval of a frame moved onto it: the steppers land on them, so no step
     straddles one (a pulse gives its impulse exactly)."""
-    breaks = break_times(schedule_of(scene.loads), float(frames[-1]))
+    breaks = break_times(schedule_of(timings(scene)), float(frames[-1]))
     if not len(breaks):
         return breaks
     nearest = frames[np.abs(breaks[:, None] - frames[None, :]).argmin(axis=1)]

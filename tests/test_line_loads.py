@@ -72,7 +72,7 @@ def test_a_line_load_on_the_net_adds_up_to_its_threads_length(tmp_path: Path) ->
                                     'force_per_length = [0.0, 1.5, -3.0]\n[output]')
     scene = scene_from_toml(text)
     structure = build_structure(scene)
-    loads = dead_loads(scene, structure)
+    loads = dead_loads(scene, structure, np.zeros(structure.n_nodes))
     total = structure.rest_length.sum()
     np.testing.assert_allclose(loads.force.sum(axis=0), np.array([0.0, 1.5, -3.0]) * total,
                                rtol=1e-12)

@@ -106,3 +106,46 @@ def test_a_static_run_refuses_times() -> None:
     with pytest.raises(SceneError) as err:
         scene_from_toml(text)
     assert "loads[0].stop" in str(err.value) and "static" in str(err.value)
+
+
+FALL = SCENE.replace('gravity = [0.0, 0.0, 0.0]', 'gravity = [0.0, -3.0, -9.81]\n{gravity}') \
+    .replace("[[loads]]\nnode = \"thread:end\"\nforce = [3.0, -1.0, 2.0]\n{timing}\n", "")
+
+
+@pytest.mark.parametrize("gravity, integral, integrator, rtol", [
+    ("gravity_table = [[0.0, 0.0], [0.1, 0.0], [0.1, 1.0], [0.3, 1.0], [0.3, 0.5]]",
+     0.2 + 0.5 * 0.1, "bdf2", 1e-9),
+    ("gravity_table = [[0.0, 0.0], [0.1, 0.0], [0.1, 1.0], [0.3, 1.0], [0.3, 0.5]]",
+     0.2 + 0.5 * 0.1, "explicit", 1e-9),
+    ("gravity_ramp = 0.2", 0.4 - 0.1, "explicit", 1e-3),
+])
+def test_gravity_with_a_time_factor_gives_the_fall_of_its_integral(
+        tmp_path: Path, gravity: str, integral: float, integrator: str, rtol: float) -> None:
+    scene = scene_from_toml(FALL.format(integrator=integrator, model="cosserat",
+                                        gravity=gravity))
+    r = run(scene, tmp_path, progress=False)
+    assert r.status == "ok", r.message
+    m = prepare(scene).mass
+    p = np.einsum("n,fni->fi", m, r.arrays["velocities"])
+    np.testing.assert_allclose(p[-1] - p[0], m.sum() * np.array([0.0, -3.0, -9.81]) * integral,
+                               rtol=rtol, atol=1e-12)
+
+
+@pytest.mark.parametrize("change, key", [
+    ('integrator = "bdf2"', "simulation.gravity_ramp"),     # static
+    ("", "simulation.gravity_ramp"),                           # a body
+    ('integrator = "bdf2"\ngravity_table = [[0.0, 1.0]]', "simulation.gravity_ramp"),
+])
+def test_bad_gravity_timing_is_refused_by_key(change: str, key: str) -> None:
+    text = FALL.format(integrator="bdf2", model="cosserat", gravity="gravity_ramp = 0.1")
+    if change.startswith('integrator = "bdf2"\ngravity_table'):
+        text = text.replace('integrator = "bdf2"', change)
+    elif change:
+        text = text.replace('integrator = "bdf2"', 'type = "static"')
+    else:
+        text = text.replace("[output]", '[[bodies]]\nname = "box"\nshape = "box"\n'
+                            'size = [1.0, 1.0, 1.0]\nmass = 10.0\nposition = [0.0, 0.0, -5.0]\n'
+                            "[output]")
+    with pytest.raises(SceneError) as err:
+        scene_from_toml(text)
+    assert key in str(err.value)

@@ -1,6 +1,8 @@
-"""The dead loads of a scene on the nodes of its structure: ``[[loads]]`` as given and
+"""The dead loads of a scene on the nodes of its structure: ``[[loads]]`` as given,
 ``[[line_loads]]`` lumped on the nodes (each element's share ``q l0`` split half and half on its
-ends, the consistent load of a linear element), each with its time factor."""
+ends, the consistent load of a linear element), and, when gravity has a time factor
+(``simulation.gravity_ramp`` or ``gravity_table``), the node weights; each with its time factor.
+Gravity without a time factor stays the models' constant weight (:func:`constant_gravity`)."""
 
 from __future__ import annotations
 
@@ -25,8 +27,16 @@ class DeadLoads:
     schedule: LoadSchedule
 
 
-def dead_loads(scene: Scene, structure: Structure) -> DeadLoads:
-    """The scene's point and line loads on the structure's nodes."""
+def constant_gravity(scene: Scene) -> NDArray[np.float64]:
+    """(3,) the gravity the models apply as a constant weight [m/s^2]: the scene's, or zero
+    when it has a time factor (then it is among the :func:`dead_loads`)."""
+    return np.zeros(3) if scene.simulation.gravity_scheduled else \
+        np.asarray(scene.simulation.gravity, float)
+
+
+def dead_loads(scene: Scene, structure: Structure, node_mass: NDArray[np.float64]) -> DeadLoads:
+    """The scene's point and line loads (and scheduled weights of ``node_mass`` (N,) [kg]) on
+    the structure's nodes."""
     nodes = [structure.node(l.node, f"loads[{i}].node") for i, l in enumerate(scene.loads)]
     force = [l.force for l in scene.loads]
     timing = list(scene.loads)
@@ -40,11 +50,36 @@ def dead_loads(scene: Scene, structure: Structure) -> DeadLoads:
         nodes += loaded.tolist()
         force += share[loaded].tolist()
         timing += [line] * len(loaded)
+    sim = scene.simulation
+    if sim.gravity_scheduled:
+        weighted = np.flatnonzero(node_mass > 0.0)
+        nodes += weighted.tolist()
+        force += (node_mass[weighted, None] * np.asarray(sim.gravity, float)).tolist()
+        timing += [_GravityTiming(sim.gravity_ramp, sim.gravity_table)] * len(weighted)
     n = len(nodes)
     return DeadLoads(np.array(nodes, dtype=np.int64), np.array(force, float).reshape(n, 3),
                      np.array([l.moment for l in scene.loads] + [(0.0, 0.0, 0.0)]
                               * (n - len(scene.loads)), float).reshape(n, 3),
                      schedule_of(timing))
+
+
+def timings(scene: Scene) -> list[object]:
+    """The time factors of the scene (every load, line load and scheduled gravity), with
+    ``ramp``, ``table``, ``start`` and ``stop``: where they jump or kink, the steppers land."""
+    sim = scene.simulation
+    gravity = [_GravityTiming(sim.gravity_ramp, sim.gravity_table)] if sim.gravity_scheduled \
+        else []
+    return [*scene.loads, *scene.line_loads, *gravity]
+
+
+@dataclass(frozen=True)
+class _GravityTiming:
+    """Gravity's time factor in the form of a load's."""
+
+    ramp: float
+    table: tuple[tuple[float, float], ...] | None
+    start: float = 0.0
+    stop: float | None = None
 
 
 def _segments_on(on: str, scene: Scene, structure: Structure) -> NDArray[np.int64]:

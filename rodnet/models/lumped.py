@@ -27,7 +27,7 @@ from rodnet.kernels.hinge import Hinges, hinge_energy, hinge_force, hinge_freque
 from rodnet.kernels.schedule import LoadSchedule, factors
 from rodnet.kernels.segments import Segments
 from rodnet.kernels.tension import axial_energy, axial_force, step_potential, step_strain_rate
-from rodnet.models.loads import dead_loads
+from rodnet.models.loads import constant_gravity, dead_loads
 from rodnet.state import Configuration, Linearization, StepRate
 from rodnet.topology import Structure
 
@@ -321,13 +321,13 @@ def build_lumped(scene: Scene, structure: Structure,
         if any(load.moment):
             raise SceneError(f"loads[{i}].moment", load.moment,
                              "a lumped model has no rotations; moments need model.type = 'cosserat'")
-    loads = dead_loads(scene, structure)
+    loads = dead_loads(scene, structure, mass)
     model = LumpedModel(
         structure=structure, mass=mass, inv_mass=inv_mass,
         EA=np.array([m.EA for m in materials])[structure.material],
         etaA=np.array([m.damping_coefficient for m in materials])[structure.material],
         kink_strain=scene.model.kink_strain, tension_only=scene.model.axial == "tension-only",
-        gravity_force=mass[:, None] * np.asarray(scene.simulation.gravity)[None, :],
+        gravity_force=mass[:, None] * constant_gravity(scene)[None, :],
         load_nodes=loads.nodes, load_force=loads.force, load_schedule=loads.schedule,
         hinges=no_hinges() if hinges is None else hinges)
     for array in (*(getattr(model, name) for name in ("mass", "inv_mass", "EA", "etaA",

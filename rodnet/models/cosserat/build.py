@@ -15,7 +15,7 @@ from rodnet.models.cosserat.geometry import (align_quaternion_signs, node_triads
                                              residual_bending_shear, support_dofs)
 from rodnet.models.cosserat.model import CosseratModel
 from rodnet.models.cosserat.net import build_cosserat_net
-from rodnet.models.loads import dead_loads
+from rodnet.models.loads import constant_gravity, dead_loads
 from rodnet.state import Configuration
 from rodnet.topology import Structure
 
@@ -58,12 +58,12 @@ def build_cosserat(scene: Scene, structure: Structure) -> tuple[CosseratModel, C
     for i, s in enumerate(scene.supports):
         node = structure.node(s.node, f"supports[{i}].node")
         free[support_dofs(s.fixed, node, node, n)] = False
-    loads = dead_loads(scene, structure)
+    loads = dead_loads(scene, structure, node_mass)
     model = CosseratModel(
         pos_nodes=seg, rot_nodes=seg, rest_length=le,
         reference_strain=reference_strains(le, structure.rest_positions[seg], ends0),
         stiffness=stiffness, tau=tau, node_mass=node_mass, rotary_inertia=rotary, free=free,
-        gravity=np.asarray(scene.simulation.gravity, float), load_nodes=loads.nodes,
+        gravity=constant_gravity(scene), load_nodes=loads.nodes,
         load_force=loads.force, load_moment=loads.moment, load_schedule=loads.schedule,
         tension_only=scene.model.axial == "tension-only", kink_strain=scene.model.kink_strain,
         end_offset=end_offset, size=structure.size)

@@ -35,7 +35,7 @@ from rodnet.kernels import so3
 from rodnet.kernels.cosserat_strain import reference_strains, strain_matrix
 from rodnet.models.cosserat.geometry import align_quaternion_signs, support_dofs
 from rodnet.models.cosserat.model import CosseratModel
-from rodnet.models.loads import dead_loads
+from rodnet.models.loads import constant_gravity, dead_loads
 from rodnet.state import Configuration
 from rodnet.topology import Structure, in_plane_axes
 
@@ -105,7 +105,7 @@ def build_cosserat_net(scene: Scene, structure: Structure, section: dict[str, Fl
     for i, s in enumerate(scene.supports):
         node = structure.node(s.node, f"supports[{i}].node")
         free[support_dofs(s.fixed, node, node_rotation[node], n_nodes)] = False
-    loads = dead_loads(scene, structure)
+    loads = dead_loads(scene, structure, node_mass)
     load_nodes = loads.nodes
     for i, l in enumerate(scene.loads):
         if any(l.moment) and node_rotation[load_nodes[i]] < 0:
@@ -115,7 +115,7 @@ def build_cosserat_net(scene: Scene, structure: Structure, section: dict[str, Fl
         pos_nodes=seg, rot_nodes=rot_nodes, rest_length=le,
         reference_strain=reference_strains(le, structure.rest_positions[seg], quat_ends),
         stiffness=section["stiffness"], tau=section["tau"], node_mass=node_mass,
-        rotary_inertia=rotary, free=free, gravity=np.asarray(scene.simulation.gravity, float),
+        rotary_inertia=rotary, free=free, gravity=constant_gravity(scene),
         load_nodes=load_nodes, load_force=loads.force, load_moment=loads.moment,
         load_schedule=loads.schedule,
         tension_only=scene.model.axial == "tension-only", kink_strain=scene.model.kink_strain,
