@@ -282,18 +282,18 @@ def run(scene: Scene, directory: str | Path | None = None, *, progress: bool | N
     integrate = INTEGRATORS[scene.integrator] if dynamic else _static
     start = time.perf_counter()
     stopped_by = None
-    with _sigterm_interrupts() as disarm:
+    with _stop_on_signals() as stop:
         try:
-            stats = integrate(p, recorder, bar, stats)
+            stats = integrate(p, stop.checked(recorder), stop.checked(bar), stats)
         except SimulationFailed as exc:
             status, message = "failed", str(exc)
         except KeyboardInterrupt as exc:
-            stopped_by = "SIGTERM" if isinstance(exc, Terminated) else "SIGINT"
+            stopped_by = exc.args[0] if isinstance(exc, Terminated) else "SIGINT"
             status = "interrupted"
             message = (f"interrupted by {'SIGTERM' if stopped_by == 'SIGTERM' else 'Ctrl-C (SIGINT)'}"
                        "; the frames computed so far are kept")
         finally:
-            disarm()
+            stop.armed = False
             bar.close()
             wall = time.perf_counter() - start
             arrays = recorder.arrays(structure.n_nodes, len(structure.segments))
@@ -317,32 +317,56 @@ def run(scene: Scene, directory: str | Path | None = None, *, progress: bool | N
 
 
 class Terminated(KeyboardInterrupt):
-    """A run stopped by SIGTERM: handled like Ctrl-C, so the run keeps every frame."""
+    """A run stopped by a signal (``args[0]``: its name), so that it keeps every frame."""
+
+
+class StopRequest:
+    """SIGTERM or Ctrl-C (SIGINT) noted by its handler and acted on by :meth:`check` between
+    steps: an exception raised by a signal handler inside the calls of the compiled loops can
+    leave them broken (measured: segmentation faults after SIGTERM), so the run stops where
+    the integrator reports progress or a frame. A second Ctrl-C stops at once."""
+
+    def __init__(self) -> None:
+        self.signal_name: str | None = None
+        self.armed = True
+
+    def note(self, signum: int, frame: Any) -> None:
+        if signum == signal.SIGINT and self.signal_name is not None:
+            raise KeyboardInterrupt   # asked twice: now
+        self.signal_name = signal.Signals(signum).name
+
+    def check(self) -> None:
+        """Raise :class:`Terminated` once, after a signal."""
+        if self.signal_name is not None and self.armed:
+            self.armed = False
+            raise Terminated(self.signal_name)
+
+    def checked(self, report: Callable[..., None]) -> Callable[..., None]:
+        """``report`` followed by :meth:`check` (the frame or progress is kept first)."""
+        def call(*args: Any) -> None:
+            report(*args)
+            self.check()
+        return call
 
 
 @contextmanager
-def _sigterm_interrupts() -> Iterator[Callable[[], None]]:
-    """Within the block SIGTERM raises :class:`Terminated` once; the block is given a function
-    that disarms it (later SIGTERMs are then ignored until the block ends, so that the results
-    get written). Only in the main thread, where Python delivers signals."""
+def _stop_on_signals() -> Iterator[StopRequest]:
+    """Within the block SIGTERM and SIGINT are noted in the :class:`StopRequest` given to it
+    (SIGINT only where it is not ignored). Only in the main thread, where Python delivers
+    signals (elsewhere nothing changes)."""
+    request = StopRequest()
     if threading.current_thread() is not threading.main_thread():
-        yield lambda: None
+        yield request
         return
-    armed = [True]
-
-    def stop(signum: int, frame: Any) -> None:
-        if armed[0]:
-            armed[0] = False
-            raise Terminated()
-
-    def disarm() -> None:
-        armed[0] = False
-
-    previous = signal.signal(signal.SIGTERM, stop)
+    previous = {sig: signal.getsignal(sig) for sig in (signal.SIGTERM, signal.SIGINT)}
+    signal.signal(signal.SIGTERM, request.note)
+    if previous[signal.SIGINT] is not signal.SIG_IGN:
+        signal.signal(signal.SIGINT, request.note)
     try:
-        yield disarm
+        yield request
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
 
 
 def _stability_advice(p: Prepared) -> str:
