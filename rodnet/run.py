@@ -30,6 +30,7 @@ from scipy.sparse.csgraph import connected_components
 
 from rodnet import config
 from rodnet.config import Scene
+from rodnet.contact.rigid_body import start_motion
 from rodnet.errors import SceneError, SimulationFailed
 from rodnet.integrate.explicit import integrate_explicit
 from rodnet.integrate.frames import StepStats, frame_times
@@ -134,9 +135,14 @@ def _restart(scene: Scene, built: Built, frames: NDArray[np.float64]
                          f"must be later than the saved frame's time {t0:g} s that the run "
                          "starts from (initial.from): duration is the end time")
     contact = built.system.contact
-    inertia = np.zeros((0, 3, 3)) if contact is None else np.where(
-        contact.bodies.free[:, None, None], contact.bodies.inertia, 0.0)
-    state = restarted(built.state, frame, inertia, built.system.n_moving > 0,
+
+    def bodies_from(saved: dict[str, NDArray[Any]]) -> Any:
+        assert contact is not None
+        inertia = np.where(contact.bodies.free[:, None, None], contact.bodies.inertia, 0.0)
+        return start_motion(saved["body_positions"], saved["body_rotations"],
+                            saved["body_velocities"], saved["body_angular_velocities"], inertia)
+
+    state = restarted(built.state, frame, bodies_from, built.system.n_moving > 0,
                       str(scene.initial.from_))
     on_grid = np.abs(frames - t0) <= 1e-9 * scene.output.frame_interval
     later = frames[frames > t0 + 1e-9 * scene.output.frame_interval]

@@ -65,10 +65,10 @@ class Recorder:
     monitors: dict[str, float] = field(default_factory=dict)
 
     def __call__(self, t: float, state: State) -> None:
-        if self.only is not None and t not in self.only:
-            return
         if self.skip_first:
             self.skip_first = False
+            return
+        if self.only is not None and t not in self.only:
             return
         frame = self.frame_of(t, state)
         for key in MONITORS:

@@ -9,15 +9,14 @@ continues from the frame's time (from 0 after a static run, whose frames are loa
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 from numpy.typing import NDArray
 
 from rodnet.config import InitialSpec
-from rodnet.contact.rigid_body import start_motion
 from rodnet.errors import SceneError
-from rodnet.state import Configuration, State
+from rodnet.state import BodyMotion, Configuration, State
 
 
 def saved_frame(spec: InitialSpec) -> tuple[float, dict[str, NDArray[Any]]]:
@@ -68,11 +67,11 @@ def _was_static(folder: Path) -> bool:
     return summary.get("scene", {}).get("simulation", {}).get("type") == "static"
 
 
-def restarted(state: State, frame: dict[str, NDArray[Any]], body_inertia: NDArray[np.float64],
+def restarted(state: State, frame: dict[str, NDArray[Any]],
+              bodies_from: Callable[[dict[str, NDArray[Any]]], BodyMotion],
               bodies_move_in_state: bool, folder: str) -> State:
     """``state`` (the scene's own start) with the threads (and bodies) of ``frame``;
-    ``body_inertia`` (B, 3, 3): the bodies' inertia about their centres in body axes, zero for
-    fixed ones.
+    ``bodies_from(frame)``: the bodies' motion from the frame's body arrays.
 
     Raises
     ------
@@ -107,8 +106,6 @@ def restarted(state: State, frame: dict[str, NDArray[Any]], body_inertia: NDArra
             raise SceneError("initial.from", folder, "a run with bodies starts from a saved "
                              "frame with the explicit integrator only (set simulation.integrator "
                              "= \"explicit\", or start from a run without bodies)")
-        bodies = start_motion(frame["body_positions"], frame["body_rotations"],
-                              frame["body_velocities"], frame["body_angular_velocities"],
-                              body_inertia)
+        bodies = bodies_from(frame)
     friction = float(frame.get("friction_work", 0.0))
     return State(q, v, bodies, friction)
