@@ -41,21 +41,21 @@ def dead_loads(scene: Scene, structure: Structure, node_mass: NDArray[np.float64
     force = [l.force for l in scene.loads]
     timing = list(scene.loads)
     for line in scene.line_loads:
-        segments = structure.segments[_segments_on(line.on, scene, structure)]
+        on = _segments_on(line.on, scene, structure)
+        segments = structure.segments[on]
         share = np.zeros((structure.n_nodes, 3))
-        half = 0.5 * structure.rest_length[_segments_on(line.on, scene, structure)]
+        half = 0.5 * structure.rest_length[on]
         for end in (0, 1):
             np.add.at(share, segments[:, end], half[:, None] * np.asarray(line.force_per_length))
         loaded = np.flatnonzero(np.abs(share).sum(axis=1) > 0.0)
         nodes += loaded.tolist()
         force += share[loaded].tolist()
         timing += [line] * len(loaded)
-    sim = scene.simulation
-    if sim.gravity_scheduled:
+    for gravity in _gravity_timing(scene):
         weighted = np.flatnonzero(node_mass > 0.0)
         nodes += weighted.tolist()
-        force += (node_mass[weighted, None] * np.asarray(sim.gravity, float)).tolist()
-        timing += [_GravityTiming(sim.gravity_ramp, sim.gravity_table)] * len(weighted)
+        force += (node_mass[weighted, None] * np.asarray(scene.simulation.gravity, float)).tolist()
+        timing += [gravity] * len(weighted)
     n = len(nodes)
     return DeadLoads(np.array(nodes, dtype=np.int64), np.array(force, float).reshape(n, 3),
                      np.array([l.moment for l in scene.loads] + [(0.0, 0.0, 0.0)]
@@ -66,10 +66,13 @@ def dead_loads(scene: Scene, structure: Structure, node_mass: NDArray[np.float64
 def timings(scene: Scene) -> list[object]:
     """The time factors of the scene (every load, line load and scheduled gravity), with
     ``ramp``, ``table``, ``start`` and ``stop``: where they jump or kink, the steppers land."""
+    return [*scene.loads, *scene.line_loads, *_gravity_timing(scene)]
+
+
+def _gravity_timing(scene: Scene) -> list[_GravityTiming]:
+    """Gravity's time factor, when it has one (else none)."""
     sim = scene.simulation
-    gravity = [_GravityTiming(sim.gravity_ramp, sim.gravity_table)] if sim.gravity_scheduled \
-        else []
-    return [*scene.loads, *scene.line_loads, *gravity]
+    return [_GravityTiming(sim.gravity_ramp, sim.gravity_table)] if sim.gravity_scheduled else []
 
 
 @dataclass(frozen=True)
