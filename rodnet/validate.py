@@ -100,8 +100,8 @@ def validate_case(folder: Path, output: Path) -> CaseOutcome:
         error = ""
     except Exception as exc:  # noqa: BLE001 -- reported as the case's failure
         result, error = None, f"{type(exc).__name__}: {exc}"
-        checks = [CheckResult(folder.name, check_label(c), math.nan, float(c.get("expected", math.nan)),
-                              tolerance(c), False)
+        checks = [CheckResult(folder.name, check_label(c), math.nan,
+                              float(c.get("expected", math.nan)), tolerance(c), False)
                   for c in read_expected(folder).get("checks", [])]
     return CaseOutcome(folder, result, checks, error, time.perf_counter() - start)
 

@@ -161,8 +161,8 @@ class ReportBuilder:
         checks = [k for c in ran for k in c.outcome.checks]  # type: ignore[union-attr]
         failed = [c.folder.name for c in ran if c.status != "passed"]
         ok = not failed and slow_tests != "FAILED"
-        return {"status": "PASSED" if ok else "FAILED", "checks_passed": sum(k.passed for k in checks),
-                "checks_total": len(checks), "cases_run": len(ran), "cases_failed": failed,
+        return {"status": "PASSED" if ok else "FAILED",
+                "checks_passed": sum(k.passed for k in checks), "checks_total": len(checks), "cases_run": len(ran), "cases_failed": failed,
                 "cases_not_run": [c.folder.name for c in self.cases if c.outcome is None],
                 "slow_tests": slow_tests}
 

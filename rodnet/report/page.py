@@ -16,7 +16,8 @@ h2 { border-bottom: 1px solid #ccc; padding-bottom: 0.2em; margin-top: 2em; }
 table { border-collapse: collapse; margin: 0.6em 0; font-size: 0.92em; }
 th, td { border: 1px solid #ccc; padding: 0.25em 0.55em; text-align: left; vertical-align: top; }
 th { background: #f2f2f2; }
-td.num { text-align: right; font-variant-numeric: tabular-nums; font-family: ui-monospace, monospace; }
+td.num { text-align: right; font-variant-numeric: tabular-nums;
+         font-family: ui-monospace, monospace; }
 .verdict { font-size: 1.25em; font-weight: bold; padding: 0.5em 0.8em; border-radius: 4px; }
 .passed { color: #0a6b1f; } .FAILED { color: #b00020; } .not-run { color: #777; }
 .verdict.passed { background: #e3f5e6; } .verdict.FAILED { background: #fde7ea; color: #b00020; }
@@ -89,7 +90,8 @@ def _summary(report: dict[str, Any]) -> str:
             f'<td>{_e(case["description"])}</td>'
             f'<td class="num">{passed if case["run_status"] else "-"} / {len(checks) or "-"}</td>'
             f'<td class="{_status_class(case["status"])}">{_e(case["status"])}</td>'
-            f'<td class="num">{_num(case["wall_time_s"], ".2f")}</td><td class="num">{order}</td></tr>')
+            f'<td class="num">{_num(case["wall_time_s"], ".2f")}</td>'
+            f'<td class="num">{order}</td></tr>')
     return ("<h2>Cases</h2>\n<table><tr><th>case</th><th>what it checks</th><th>checks passed</th>"
             "<th>status</th><th>wall time [s]</th><th>observed order (finest pair)</th></tr>"
             + "".join(rows) + "</table>\n")
@@ -151,8 +153,8 @@ def _case(case: dict[str, Any], pngs: dict[str, bytes], folder: Path) -> str:
                    "--slow</code> runs it.</p>")
     else:
         if case["message"]:
-            out.append(f'<p class="failure">The run {"raised an error" if case["run_status"] == "error" else "failed"}: '
-                       f"{_e(case['message'])}</p>")
+            what = "raised an error" if case["run_status"] == "error" else "failed"
+            out.append(f'<p class="failure">The run {what}: {_e(case["message"])}</p>')
         out.append(_figures(case, pngs))
         out.append(_checks_table(case["checks"]))
         if case["refinement"] is not None:
@@ -161,8 +163,8 @@ def _case(case: dict[str, Any], pngs: dict[str, bytes], folder: Path) -> str:
     if readme.is_file():
         out.append(f"<details><summary>README.md: where the expected values come from</summary>"
                    f'<div class="readme">{markdown(readme.read_text())}</div></details>')
-    out.append(f"<details><summary>scene.toml</summary><pre>{_e((folder / 'scene.toml').read_text())}"
-               "</pre></details>")
+    scene = _e((folder / "scene.toml").read_text())
+    out.append(f"<details><summary>scene.toml</summary><pre>{scene}</pre></details>")
     out.append("</section>")
     return "\n".join(out) + "\n"
 

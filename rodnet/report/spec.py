@@ -109,12 +109,21 @@ def _text(table: dict[str, Any], key: str, where: str) -> str:
     return value
 
 
+def _known(table: dict[str, Any], known: set[str], where: str) -> None:
+    if unknown := sorted(set(table) - known):
+        raise SceneError(f"{where}.{unknown[0]}", table[unknown[0]],
+                         f"unknown key; allowed: {sorted(known)}")
+
+
+def _number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
 def figure_spec(table: dict[str, Any], folder: Path) -> FigureSpec:
     """Check a ``[figure]`` table; errors name ``<folder>/expected.toml: figure.<key>``."""
     where = f"{folder / 'expected.toml'}: figure"
-    known = {"x", "quantity", "node", "rod", "frame", "components", "name", "reference", "ylabel"}
-    if unknown := sorted(set(table) - known):
-        raise SceneError(f"{where}.{unknown[0]}", table[unknown[0]], f"unknown key; allowed: {sorted(known)}")
+    _known(table, {"x", "quantity", "node", "rod", "frame", "components", "name", "reference",
+                   "ylabel"}, where)
     x = _pick(table, "x", where, {**HISTORY_X, **SHAPE_X})
     quantity = _pick(table, "quantity", where, QUANTITIES)
     node = rod = None
@@ -135,7 +144,8 @@ def figure_spec(table: dict[str, Any], folder: Path) -> FigureSpec:
             node = _text(table, "node", where)
     frame = table.get("frame", -1)
     if not isinstance(frame, int) or isinstance(frame, bool):
-        raise SceneError(f"{where}.frame", frame, "must be an integer (negative counts from the end)")
+        raise SceneError(f"{where}.frame", frame,
+                         "must be an integer (negative counts from the end)")
     reference = table.get("reference")
     if reference is not None:
         path = _reference_source(folder, _text(table, "reference", where), where)
@@ -147,38 +157,41 @@ def figure_spec(table: dict[str, Any], folder: Path) -> FigureSpec:
     return FigureSpec(x, quantity, components, node, rod, frame, reference, str(ylabel))
 
 
-def refinement_spec(table: dict[str, Any], checks: list[dict[str, Any]], folder: Path) -> RefinementSpec:
+def refinement_spec(table: dict[str, Any], checks: list[dict[str, Any]], folder: Path
+                    ) -> RefinementSpec:
     """Check a ``[refinement]`` table against the case's ``checks``."""
     where = f"{folder / 'expected.toml'}: refinement"
-    known = {"key", "values", "scale", "check", "expected_order"}
-    if unknown := sorted(set(table) - known):
-        raise SceneError(f"{where}.{unknown[0]}", table[unknown[0]], f"unknown key; allowed: {sorted(known)}")
+    _known(table, {"key", "values", "scale", "check", "expected_order"}, where)
     key = _text(table, "key", where)
     values = table.get("values")
-    if (not isinstance(values, list) or len(values) < 2
-            or not all(isinstance(v, int | float) and not isinstance(v, bool) and v > 0 for v in values)
-            or len(set(values)) != len(values)):
-        raise SceneError(f"{where}.values", values, "must list at least two distinct positive numbers")
+    if (not isinstance(values, list) or len(values) < 2 or len(set(values)) != len(values)
+            or not all(_number(v) and v > 0 for v in values)):
+        raise SceneError(f"{where}.values", values,
+                         "must list at least two distinct positive numbers")
     scale = _pick(table, "scale", where, SCALES, default="count")
     check = table.get("check")
     if not isinstance(check, int) or isinstance(check, bool) or not 1 <= check <= len(checks):
         raise SceneError(f"{where}.check", check,
                          f"must number one of the case's {len(checks)} [[checks]] (from 1)")
     order = table.get("expected_order")
-    if order is not None and (not isinstance(order, int | float) or isinstance(order, bool)):
+    if order is not None and not _number(order):
         raise SceneError(f"{where}.expected_order", order, "must be a number")
-    return RefinementSpec(key, tuple(values), scale, check - 1, None if order is None else float(order))
+    return RefinementSpec(key, tuple(values), scale, check - 1,
+                          None if order is None else float(order))
 
 
-def case_specs(folder: Path, expected: dict[str, Any]) -> tuple[FigureSpec | None, RefinementSpec | None]:
+def case_specs(folder: Path, expected: dict[str, Any]
+               ) -> tuple[FigureSpec | None, RefinementSpec | None]:
     """The checked ``[figure]`` and ``[refinement]`` of a case (``None`` where absent)."""
     figure = expected.get("figure")
     refinement = expected.get("refinement")
     for name, table in (("figure", figure), ("refinement", refinement)):
         if table is not None and not isinstance(table, dict):
-            raise SceneError(f"{folder / 'expected.toml'}: {name}", table, f"must be a table [{name}]")
+            raise SceneError(f"{folder / 'expected.toml'}: {name}", table,
+                             f"must be a table [{name}]")
+    checks = expected.get("checks", [])
     return (None if figure is None else figure_spec(figure, folder),
-            None if refinement is None else refinement_spec(refinement, expected.get("checks", []), folder))
+            None if refinement is None else refinement_spec(refinement, checks, folder))
 
 
 def _reference_source(folder: Path, reference: str, where: str) -> Path:
@@ -191,12 +204,18 @@ def _reference_source(folder: Path, reference: str, where: str) -> Path:
     return path
 
 
-def reference_function(folder: Path, name: str) -> Callable[[NDArray[np.float64], dict[str, Any]], Columns]:
+ReferenceFunction = Callable[[NDArray[np.float64], dict[str, Any]], Columns]
+
+
+def reference_function(folder: Path, name: str) -> ReferenceFunction:
     """The function ``name`` of ``folder/reference.py``, read without writing a bytecode cache."""
     path = folder / "reference.py"
     module = types.ModuleType(f"reference_{folder.name}")
     module.__file__ = str(path)
-    exec(compile(path.read_text(), str(path), "exec"), module.__dict__)  # noqa: S102 -- the case's own code
+    try:  # the case's own code, as tests load an oracle of elements/ by file path
+        exec(compile(path.read_text(), str(path), "exec"), module.__dict__)  # noqa: S102
+    except Exception as exc:  # noqa: BLE001 -- any error of that file is bad input
+        raise SceneError(str(path), "...", f"cannot be read: {type(exc).__name__}: {exc}") from None
     function = getattr(module, name, None)
     if not callable(function):
         raise SceneError(f"{folder / 'expected.toml'}: figure.reference", name,
@@ -210,7 +229,8 @@ def reference_table(path: Path, columns: tuple[str, ...]) -> Columns:
         rows = list(csv.reader(line for line in handle if not line.lstrip().startswith("#")))
     header, body = [h.strip() for h in rows[0]], rows[1:]
     if missing := [c for c in columns if c not in header]:
-        raise SceneError(f"{path}", header, f"has no column {missing[0]!r}; it needs {list(columns)}")
+        raise SceneError(f"{path}", header,
+                         f"has no column {missing[0]!r}; it needs {list(columns)}")
     try:
         data = np.array([[float(v) for v in row] for row in body if row], dtype=float)
     except ValueError:
