@@ -56,9 +56,11 @@ def figure_caption(spec: FigureSpec) -> str:
         what = f"The {spec.quantity} ({parts}) of the nodes of rod {spec.rod} at {frame}"
     else:
         what = f"The {spec.quantity} ({parts}) of node {spec.node} at every saved frame"
+    if spec.quantity == "series" and spec.reference is None:
+        return (what + "; dashed line and grey band: the expected value of each metric check and "
+                "its tolerance. Lower panel: the same, zoomed on the band.")
     if spec.reference is None:
-        return (what + "; squares with bars: the checks' expected values with their tolerances"
-                "; a line with a grey band: a metric check with its tolerance.")
+        return what + "; squares with bars: the checks' expected values with their tolerances."
     source = (f"the table {spec.reference}" if spec.reference.endswith(".csv")
               else f"{spec.reference}() of reference.py")
     return (what + f", against the reference, {source} (dashed); squares with bars: the checks' "

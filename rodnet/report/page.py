@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import base64
 import html
+import re
 from pathlib import Path
 from typing import Any
 
@@ -48,6 +49,13 @@ def _num(value: float | None, fmt: str = ".7g") -> str:
     return "-" if value is None else format(value, fmt)
 
 
+def _word(value: Any) -> Any:
+    """Yes and no for booleans, "unknown" for ``None``."""
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    return "unknown" if value is None else value
+
+
 def _status_class(status: str) -> str:
     return "not-run" if status.startswith("not run") else status
 
@@ -59,7 +67,9 @@ def markdown(text: str) -> str:
         from markdown_it import MarkdownIt
     except ImportError:
         return f"<pre>{_e(text)}</pre>"
-    return str(MarkdownIt("commonmark", {"html": False}).enable("table").render(text))
+    rendered = MarkdownIt("commonmark", {"html": False}).enable("table").render(text)
+    # the README's headings below the case's own (h2) and its sections (h3)
+    return re.sub(r"<(/?)h([1-6])>", lambda m: f"<{m[1]}h{min(int(m[2]) + 3, 6)}>", rendered)
 
 
 def _header(report: dict[str, Any]) -> str:
@@ -72,7 +82,7 @@ def _header(report: dict[str, Any]) -> str:
     if verdict["cases_not_run"]:
         words += f"; {len(verdict['cases_not_run'])} slow cases not run"
     words += f"; slow validation tests: {verdict['slow_tests']}"
-    rows = "".join(f"<tr><th>{_e(label)}</th><td>{_e(head[key])}</td></tr>"
+    rows = "".join(f"<tr><th>{_e(label)}</th><td>{_e(_word(head[key]))}</td></tr>"
                    for label, key in ENVIRONMENT_ROWS)
     return (f'<h1>rodnet validation report</h1>\n<p class="verdict {status}" id="verdict">'
             f"{_e(words)}</p>\n<table class=\"environment\">{rows}</table>\n")
