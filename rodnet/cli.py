@@ -31,13 +31,13 @@ def _parser() -> argparse.ArgumentParser:
     val.add_argument("--cases", type=Path, default=Path("validation/cases"),
                      help="folder of cases (default: validation/cases)")
     val.add_argument("-o", "--output", type=Path, default=Path("validation/reports"),
-                     help="report folder (default: validation/reports)")
+                     help="folder of the table validation.md (default: validation/reports)")
     val.add_argument("--fast", action="store_true", help="skip the cases marked slow")
     val.add_argument("--no-tests", action="store_true",
                      help="do not run the slow validation tests (pytest -m slow tests)")
     val.add_argument("--report", type=Path, default=None, metavar="DIR",
-                     help="also write a report people read: DIR/index.html (figures against the "
-                     "references, checks, convergence orders, versions, machine) and "
+                     help="also write the validation report: DIR/index.html (each case's figure "
+                     "against its reference, checks, convergence orders, versions, machine) and "
                      "DIR/report.json; runs the quick cases only, unless --slow")
     val.add_argument("--slow", action="store_true",
                      help="with --report: also run the slow cases and the slow validation tests "
@@ -164,10 +164,14 @@ def _validate(cases: Path, output: Path, quick: bool, report_dir: Path | None
         return EXIT_BAD_INPUT, "", None
     builder = None
     if report_dir is not None:
-        from rodnet.report.build import ReportBuilder
-
         try:
+            from rodnet.report.build import ReportBuilder
+
             builder = ReportBuilder(report_dir, every)
+        except ImportError as exc:
+            print(f"rodnet: --report needs matplotlib ({exc}): pip install -e '.[viz]'. Nothing "
+                  "was run.", file=sys.stderr)
+            return EXIT_BAD_INPUT, "", None
         except SceneError as exc:
             print(f"rodnet: bad input: {exc}. Nothing was run.", file=sys.stderr)
             return EXIT_BAD_INPUT, "", None
