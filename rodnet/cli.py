@@ -7,8 +7,12 @@ import argparse
 import signal
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from rodnet.data import reference_scene_text
+
+if TYPE_CHECKING:
+    from rodnet.report.build import ReportBuilder
 
 EXIT_BAD_INPUT, EXIT_FAILED = 2, 1
 
@@ -27,10 +31,17 @@ def _parser() -> argparse.ArgumentParser:
     val.add_argument("--cases", type=Path, default=Path("validation/cases"),
                      help="folder of cases (default: validation/cases)")
     val.add_argument("-o", "--output", type=Path, default=Path("validation/reports"),
-                     help="report folder (default: validation/reports)")
+                     help="folder of the table validation.md (default: validation/reports)")
     val.add_argument("--fast", action="store_true", help="skip the cases marked slow")
     val.add_argument("--no-tests", action="store_true",
                      help="do not run the slow validation tests (pytest -m slow tests)")
+    val.add_argument("--report", type=Path, default=None, metavar="DIR",
+                     help="also write the validation report: DIR/index.html (each case's figure "
+                     "against its reference, checks, convergence orders, versions, machine) and "
+                     "DIR/report.json; runs the quick cases only, unless --slow")
+    val.add_argument("--slow", action="store_true",
+                     help="with --report: also run the slow cases and the slow validation tests "
+                     "(without --report they run anyway, unless --fast)")
     ben = sub.add_parser("bench", help="work-precision study of the reference deployment "
                          "(long: hours; --quick: a small net in a few minutes)")
     ben.add_argument("-o", "--output", type=Path, default=Path("bench"),
@@ -72,20 +83,7 @@ def main(argv: list[str] | None = None) -> int:
     Ctrl-C, 143 by SIGTERM)."""
     args = _parser().parse_args(argv)
     if args.command == "validate":
-        status, verdict = _validate(args.cases, args.output, args.fast)
-        if status != EXIT_BAD_INPUT and not args.no_tests and not args.fast \
-                and Path("tests").is_dir():
-            import subprocess
-
-            print("rodnet: running the slow validation tests (pytest -m slow tests)",
-                  file=sys.stderr)
-            done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-m", "slow", "tests"])
-            tests_ok = done.returncode in (0, 5)
-            status = status or (0 if tests_ok else EXIT_FAILED)
-            verdict += "; slow validation tests " + ("passed" if tests_ok else "FAILED")
-        if verdict:
-            print(f"rodnet validate: {'PASSED' if status == 0 else 'FAILED'}: {verdict}")
-        return status
+        return _validate_command(args)
     if args.command == "bench":
         from rodnet.tools.bench import bench
 
@@ -121,25 +119,76 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def _validate(cases: Path, output: Path, fast: bool) -> tuple[int, str]:
-    """Run every case under ``cases``; write ``output/validation.md``. Returns the exit status
-    (0 when all checks pass) and the verdict: how many checks passed, where the report is."""
+def _validate_command(args: argparse.Namespace) -> int:
+    """``rodnet validate``: the cases, the slow tests unless left out, the report if asked for.
+    With ``--report`` the quick set is the default: the slow cases and tests need ``--slow``."""
+    if args.fast and args.slow:
+        print("rodnet: bad input: --fast and --slow contradict each other: --fast leaves the slow "
+              "cases out, --slow runs them; give one of them", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    quick = args.fast or (args.report is not None and not args.slow)
+    status, verdict, report = _validate(args.cases, args.output, quick, args.report)
+    tests = "not run"
+    if status != EXIT_BAD_INPUT and not args.no_tests and not quick and Path("tests").is_dir():
+        import subprocess
+
+        print("rodnet: running the slow validation tests (pytest -m slow tests)", file=sys.stderr)
+        done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-m", "slow", "tests"])
+        tests = "passed" if done.returncode in (0, 5) else "FAILED"
+        status = status or (0 if tests == "passed" else EXIT_FAILED)
+        verdict += f"; slow validation tests {tests}"
+    if report is not None:
+        verdict += f"; HTML report in {report.write(not quick, tests)}"
+    if verdict:
+        print(f"rodnet validate: {'PASSED' if status == 0 else 'FAILED'}: {verdict}")
+    return status
+
+
+def _validate(cases: Path, output: Path, quick: bool, report_dir: Path | None
+              ) -> tuple[int, str, ReportBuilder | None]:
+    """Run every case under ``cases`` (``quick``: not those marked slow); write
+    ``output/validation.md``. Returns the exit status (0 when all checks pass), the verdict (how
+    many checks passed, where the report is) and, with ``report_dir``, the report's builder with
+    every case added, to be written once the slow tests have run."""
     import tempfile
 
-    from rodnet.validate import case_folders, read_expected, report, run_case
+    from rodnet.errors import SceneError
+    from rodnet.validate import case_folders, read_expected, report, validate_case
 
-    folders = [f for f in case_folders(cases) if not (fast and read_expected(f).get("slow", False))]
+    every = case_folders(cases)
+    slow = {f for f in every if read_expected(f).get("slow", False)}
+    folders = [f for f in every if not (quick and f in slow)]
     if not folders:
         print(f"rodnet: bad input: no validation cases (scene.toml + expected.toml) under {cases}",
               file=sys.stderr)
-        return EXIT_BAD_INPUT, ""
+        return EXIT_BAD_INPUT, "", None
+    builder = None
+    if report_dir is not None:
+        try:
+            from rodnet.report.build import ReportBuilder
+
+            builder = ReportBuilder(report_dir, every)
+        except ImportError as exc:
+            print(f"rodnet: --report needs matplotlib ({exc}): pip install -e '.[viz]'. Nothing "
+                  "was run.", file=sys.stderr)
+            return EXIT_BAD_INPUT, "", None
+        except SceneError as exc:
+            print(f"rodnet: bad input: {exc}. Nothing was run.", file=sys.stderr)
+            return EXIT_BAD_INPUT, "", None
     results, failed_runs = [], []
-    for folder in folders:
+    for folder in every:
+        if folder not in folders:
+            if builder is not None:
+                builder.not_run(folder)
+            continue
         print(f"rodnet: validating {folder.name} ...", file=sys.stderr)
-        result, checks = run_case(folder, Path(tempfile.mkdtemp(prefix=f"rodnet-{folder.name}-")))
-        results += checks
-        if result.status != "ok":
-            failed_runs.append(f"{folder.name}: {result.message}")
+        scratch = Path(tempfile.mkdtemp(prefix=f"rodnet-{folder.name}-"))
+        outcome = validate_case(folder, scratch / "run" if builder else scratch)
+        if builder is not None:
+            builder.add(outcome, scratch)
+        results += outcome.checks
+        if outcome.failure:
+            failed_runs.append(f"{folder.name}: {outcome.failure}")
     text = report(results)
     output.mkdir(parents=True, exist_ok=True)
     (output / "validation.md").write_text("# Validation report\n\n" + text + "\n")
@@ -150,8 +199,10 @@ def _validate(cases: Path, output: Path, fast: bool) -> tuple[int, str]:
     ok = passed == len(results) and not failed_runs
     verdict = (f"{passed} of {len(results)} checks passed in {len(folders)} cases"
                + (f", {len(failed_runs)} runs failed" if failed_runs else "")
+               + (f", {len(every) - len(folders)} slow cases not run"
+                  if builder and len(every) > len(folders) else "")
                + f"; report in {output / 'validation.md'}")
-    return (0 if ok else EXIT_FAILED), verdict
+    return (0 if ok else EXIT_FAILED), verdict, builder
 
 
 def _report(result) -> None:  # type: ignore[no-untyped-def]

@@ -1,0 +1,1 @@
+"""The validation report of ``rodnet validate --report DIR`` (:mod:`rodnet.report.build`)."""
