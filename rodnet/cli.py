@@ -52,7 +52,7 @@ def _parser() -> argparse.ArgumentParser:
                      "--samples); repeatable")
     swp.add_argument("--samples", type=_positive_int, default=None, metavar="N",
                      help="Latin-hypercube samples of the ranges (times the grid)")
-    swp.add_argument("--seed", type=int, default=None, help="seed of the Latin hypercube")
+    swp.add_argument("--seed", type=int, default=0, help="seed of the Latin hypercube (default 0)")
     swp.add_argument("--workers", type=_positive_int, default=None, metavar="N",
                      help="single-threaded worker processes of the local cluster "
                      "(default: one per core)")
@@ -60,7 +60,7 @@ def _parser() -> argparse.ArgumentParser:
                      help="an existing dask scheduler (tcp://host:8786) instead of a local cluster")
     swp.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                      help="override a scene key in every run, as rodnet run --set (repeatable)")
-    swp.add_argument("--quiet", action="store_true", help="no progress bar or log lines")
+    swp.add_argument("--quiet", action="store_true", help="no progress bar or progress lines")
     for p in (run, demo):
         p.add_argument("-o", "--output", type=Path, default=None,
                        help="output directory (default: the scene's output.directory)")

@@ -158,16 +158,18 @@ def _connect(workers: int | None, scheduler: str | None) -> tuple[Any, Any]:
             raise SceneError("--scheduler", scheduler, f"no dask scheduler answers at this "
                              f"address ({exc}); start one with `dask scheduler` and workers "
                              "with `dask worker ADDRESS`") from None
-    with _environment(SINGLE_THREAD):   # spawned workers import numpy (BLAS) before `env`
+    with _environment(SINGLE_THREAD), _children_ignore_ctrl_c():
         cluster = LocalCluster(n_workers=local_workers(workers), threads_per_worker=1,
                                processes=True, env=SINGLE_THREAD, dashboard_address=None,
-                               silence_logs=logging.ERROR)
+                               silence_logs=logging.CRITICAL)
     return Client(cluster), cluster
 
 
 @contextmanager
 def _environment(values: dict[str, str]) -> Iterator[None]:
-    """``os.environ`` with ``values`` set within the block, as it was after it."""
+    """``os.environ`` with ``values`` set within the block, as it was after it: the workers
+    spawned there inherit them before they import numpy (and with it BLAS), which dask's
+    ``env`` of a worker, applied after that, would be too late for."""
     before = {k: os.environ.get(k) for k in values}
     os.environ.update(values)
     try:
@@ -178,6 +180,24 @@ def _environment(values: dict[str, str]) -> Iterator[None]:
                 os.environ.pop(key, None)
             else:
                 os.environ[key] = value
+
+
+@contextmanager
+def _children_ignore_ctrl_c() -> Iterator[None]:
+    """SIGINT ignored within the block (main thread only), so that the worker processes spawned
+    there inherit that: Ctrl-C at a terminal goes to the whole process group, and the sweep,
+    not each worker, stops the runs (else every worker prints a traceback)."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def _close(client: Any, cluster: Any) -> None:

@@ -95,7 +95,8 @@ def plan(scene_path: str | Path, vary: Sequence[str], sets: Sequence[str] = (),
     sets : sequence of str
         ``KEY=VALUE`` overrides of every run, as ``rodnet run --set``.
     samples, seed : int, optional
-        Latin-hypercube samples of the ranges (required with a range) and the generator's seed.
+        Latin-hypercube samples of the ranges (required with a range) and the generator's seed
+        (None: a new draw each time; ``rodnet sweep`` gives 0, so the same command resumes).
         The runs are every sample combined with every point of the grid, samples outermost.
 
     Raises
@@ -118,7 +119,8 @@ def plan(scene_path: str | Path, vary: Sequence[str], sets: Sequence[str] = (),
         key = sorted(fixed & set(keys))[0]
         raise SceneError("--set", key, "is also varied (--vary): set it or vary it, not both")
     runs = _runs(axes, samples, seed)
-    sweep = Sweep(path.resolve(), text, tuple(vary), tuple(sets), samples, seed, runs)
+    sweep = Sweep(path.resolve(), text, tuple(vary), tuple(sets), samples,
+                  seed if samples is not None else None, runs)
     check(sweep)
     return sweep
 

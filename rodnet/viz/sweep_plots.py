@@ -17,13 +17,13 @@ from typing import Any
 MAX_LINES = 8
 """At most this many lines per panel, else points only."""
 
-SKIPPED = ("index", "status", "message")
-"""Columns that are neither varied keys nor metrics."""
+SKIPPED = ("index", "status", "message", "wall_time_s", "steps")
+"""Columns that are neither varied keys nor metrics of the runs' ``summary.json``."""
 
 
 def metrics(rows: list[dict[str, Any]], keys: list[str]) -> list[str]:
-    """The metric columns of ``rows`` (numbers, not varied keys), in order of appearance;
-    ``wall_time_s`` and ``steps`` included."""
+    """The metric columns of ``rows`` (numbers, neither varied keys nor :data:`SKIPPED`), in
+    order of appearance."""
     found: list[str] = []
     for r in rows:
         found += [c for c, v in r.items() if c not in (*SKIPPED, *keys, *found) and _number(v)]

@@ -13,8 +13,11 @@ from __future__ import annotations
 import csv
 import json
 import os
+import shutil
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -61,25 +64,28 @@ def test_every_row_is_what_rodnet_run_gives(swept, tmp_path: Path,
         {(i, s) for i in INTEGRATORS for s in SPEEDS}
     assert {"status", "message", "wall_time_s", "steps", "max_mouth_area",
             "max_tension"} <= set(rows[0])
+    references = {}
     for r in rows:
         ref = tmp_path / f"ref{r['index']}"
         sets = [*SETS, f"simulation.integrator={r['simulation.integrator']}",
                 f"net.launch_speed={r['net.launch_speed']}"]
         main(["run", str(scene), "-o", str(ref), "--quiet", *[a for s in sets for a in ("--set", s)]])
-        expected = json.loads((ref / "summary.json").read_text())
+        expected = references[r["index"]] = json.loads((ref / "summary.json").read_text())
         assert (r["status"], r["message"]) == (expected["status"], expected["message"])
         assert int(r["steps"]) == expected["steps"] and expected["metrics"]
         for name, value in expected["metrics"].items():
             assert float(r[name]) == value, (r["index"], name)
         folder = out / "runs" / f"{int(r['index']):04d}"
         assert sorted(p.name for p in folder.iterdir()) == sorted(p.name for p in ref.iterdir())
-        assert json.loads((folder / "summary.json").read_text())["metrics"] == expected["metrics"]
+        own = json.loads((folder / "summary.json").read_text())
+        assert own["metrics"] == expected["metrics"] and float(r["wall_time_s"]) == own["wall_time_s"]
     capsys.readouterr()
     failed = [r for r in rows if r["status"] != "ok"]
     assert {r["simulation.integrator"] for r in failed} == {"midpoint"} and len(failed) == 3
     assert all("energy grew" in r["message"] for r in failed)
     assert "run 0003" in done.stderr and "energy grew" in done.stderr
-    assert all((out / f"sweep_{m}.png").stat().st_size > 0 for m in ("max_mouth_area", "steps"))
+    assert sorted(p.name for p in out.glob("sweep_*.png")) == \
+        sorted(f"sweep_{m}.png" for m in references["0"]["metrics"])   # an ok run's metrics
     definition = json.loads((out / "sweep.json").read_text())
     assert definition["scene"]["text"] == scene.read_text() and definition["vary"] == VARY
     assert [r["overrides"] for r in definition["runs"]][4] == \
@@ -121,13 +127,39 @@ def test_an_exception_in_a_worker_is_a_row(swept, tmp_path: Path,
     """A run folder replaced by a file: the worker's task raises on it; the other runs stay."""
     scene, out, _ = swept
     copy = tmp_path / "out"
-    subprocess.run(["cp", "-a", str(out), str(copy)], check=True)
-    (copy / "runs" / "0001" / "summary.json").unlink()
-    (copy / "runs" / "0001" / "result.npz").unlink()
-    (copy / "runs" / "0001").rmdir()
+    shutil.copytree(out, copy)
+    shutil.rmtree(copy / "runs" / "0001")
     (copy / "runs" / "0001").write_text("in the way")
     assert main(_args(scene, copy) + ["--workers", "1"]) == EXIT_FAILED
     assert "5 complete, 1 to run" in capsys.readouterr().err
     rows = _table(copy)
     assert rows[1]["status"] == "failed" and "NotADirectoryError" in rows[1]["message"]
     assert [r["status"] for r in rows].count("ok") == 2
+
+
+@pytest.mark.slow   # about 12 s on a quiet machine, and it keeps both cores busy meanwhile
+def test_sigterm_keeps_the_finished_runs(tmp_path: Path) -> None:
+    """Stopped by SIGTERM while long runs go on: exit status 143, the finished run's row and
+    folder kept, the others pending in sweep.csv (and no summary of theirs)."""
+    scene = tmp_path / "net.toml"
+    scene.write_text(small_net_toml(duration=0.3))
+    out = tmp_path / "out"
+    process = subprocess.Popen([sys.executable, "-m", "rodnet", "sweep", str(scene), "-o", str(out),
+                                "--vary", "simulation.duration=0.1,3600,3600", "--workers", "2"],
+                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                               cwd=tmp_path, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    try:
+        deadline = time.monotonic() + 240.0
+        while not (out / "sweep.csv").is_file() or _table(out)[0]["status"] != "ok":
+            assert process.poll() is None and time.monotonic() < deadline
+            time.sleep(0.2)
+        process.send_signal(signal.SIGTERM)
+        assert process.wait(timeout=120) == 143
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert "stopped by SIGTERM" in process.stderr.read()
+    rows = _table(out)
+    assert [r["status"] for r in rows] == ["ok", "pending", "pending"]
+    assert float(rows[0]["max_mouth_area"]) > 0
+    assert not (out / "runs" / "0001" / "summary.json").exists()
