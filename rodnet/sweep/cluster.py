@@ -13,15 +13,17 @@ from pathlib import Path
 from typing import Any
 
 from rodnet.errors import SceneError
+from rodnet.run import Terminated
+from rodnet.run import run as run_scene
 from rodnet.scene import scene_from_toml
 from rodnet.sweep.folder import complete, row, start, write_table
 from rodnet.sweep.plan import Run, Sweep
+from rodnet.viz.figures import draw_run_figures
 
 SINGLE_THREAD = {name: "1" for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS",
                                         "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")}
 """The environment of the local workers: one BLAS and one numba thread per single-threaded
 worker, so that N workers keep N cores busy and no more."""
-
 
 
 def run_one(text: str, source: str, overrides: list[str], directory: str) -> dict[str, Any]:
@@ -34,14 +36,11 @@ def run_one(text: str, source: str, overrides: list[str], directory: str) -> dic
         ``status``, ``message``, ``wall_time_s``, ``steps``, ``metrics`` and ``warnings``
         (the run's, and those of drawing its pictures) of its ``summary.json``.
     """
-    from rodnet.run import run
-    from rodnet.viz.figures import draw_run_figures
-
     out = Path(directory)
     if out.exists():
         shutil.rmtree(out)
     scene = scene_from_toml(text, overrides, source=source)
-    result = run(scene, out, progress=False, threads=1)
+    result = run_scene(scene, out, progress=False, threads=1)
     summary = {k: result.summary.get(k) for k in ("status", "message", "wall_time_s", "steps",
                                                    "metrics")}
     summary["warnings"] = list(result.summary.get("warnings", [])) + \
@@ -218,8 +217,6 @@ def _raise_on_sigterm() -> Any:
     import signal
     import threading
 
-    from rodnet.run import Terminated
-
     if threading.current_thread() is not threading.main_thread():
         return None
 
@@ -233,14 +230,16 @@ def _run_all(client: Any, sweep: Sweep, todo: list[Run], directory: Path,
              rows: dict[int, dict[str, Any]], bar: Any) -> None:
     """Submit ``todo``, and as each run finishes put its row in ``rows`` and rewrite the table."""
     import time
+    import uuid
 
     from dask.distributed import as_completed
 
     runs, submitted = {}, []
+    tag = uuid.uuid4().hex[:12]   # keys unique on a scheduler that other sweeps share
     for run in todo:
         future = client.submit(run_one, sweep.text, str(sweep.scene_path), sweep.overrides(run),
-                               str(directory / run.folder), key=f"rodnet-run-{run.index:04d}",
-                               pure=False)
+                               str(directory / run.folder),
+                               key=f"rodnet-run-{run.index:04d}-{tag}", pure=False)
         runs[future.key] = run
         submitted.append(future)
     finished = failed = 0

@@ -67,7 +67,7 @@ class Sweep:
         return [key for key, _ in self.runs[0].values]
 
     def definition(self) -> dict[str, Any]:
-        """What ``sweep.json`` says of the sweep; two sweeps are the same when this is."""
+        """What ``sweep.json`` says of the sweep (besides the versions that ran it)."""
         return {"scene": {"path": str(self.scene_path), "text": self.text},
                 "vary": list(self.vary), "set": list(self.sets), "samples": self.samples,
                 "seed": self.seed, "runs": [{"index": r.index, "folder": r.folder,

@@ -109,8 +109,13 @@ def main() -> None:
             lines.append(f"| {workers} | {r['wall']:.1f} | {r['runs']:.1f} | "
                          f"{r['load_before']:.2f} | {r['load_after']:.2f} |")
     lines += ["", f"Speed-up of two workers over one (best of each): "
-              f"**{best[1] / best[2]:.2f}** ({best[1]:.1f} s / {best[2]:.1f} s).", "",
-              "The sweep's table (the last two-worker sweep):", "",
+              f"**{best[1] / best[2]:.2f}** ({best[1]:.1f} s / {best[2]:.1f} s).", ""]
+    busy = max(max(r["load_before"], r["load_after"]) for rs in results.values() for r in rs)
+    if busy > (os.cpu_count() or 1):
+        lines += [f"The load average reached {busy:.2f} on {os.cpu_count()} cores: other jobs "
+                  "kept the cores busy, so the workers competed with them, and this speed-up "
+                  "says more of that load than of the sweep.", ""]
+    lines += ["The sweep's table (the last two-worker sweep):", "",
               markdown(table(work / f"w2_{args.repeat - 1}"))]
     text = "\n".join(lines)
     print(text)
