@@ -76,10 +76,11 @@ def _panel(ax: Any, rows: list[dict[str, Any]], keys: list[str], key: str, metri
     others = [k for k in keys if k != key]
     groups: dict[str, list[dict[str, Any]]] = {}
     for r in rows:
-        groups.setdefault(", ".join(f"{k} = {_text(r[k])}" for k in others), []).append(r)
+        groups.setdefault(json.dumps([r[k] for k in others]), []).append(r)
     lines = len(groups) <= MAX_LINES and any(len(g) > 1 for g in groups.values())
-    for label, group in groups.items() if lines else [("", rows)]:
+    for group in groups.values() if lines else [rows]:
         group = sorted(group, key=lambda r: x(r[key]))
+        label = ", ".join(f"{k} = {_text(group[0][k])}" for k in others) if lines else None
         ax.plot([x(r[key]) for r in group], [r[metric] for r in group],
                 "o-" if lines else "o", ms=4, label=label or None)
     if not numeric:
@@ -92,6 +93,9 @@ def _panel(ax: Any, rows: list[dict[str, Any]], keys: list[str], key: str, metri
 
 
 def _text(value: Any) -> str:
+    """A value as a label (floats to 4 digits: a Latin-hypercube sample has 16)."""
+    if isinstance(value, float):
+        return f"{value:.4g}"
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, (list, tuple)):
