@@ -141,28 +141,6 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def _sweep(args: argparse.Namespace) -> int:
-    """``rodnet sweep``: plan and check every run, then run them on dask (rodnet.sweep)."""
-    from rodnet import sweep
-    from rodnet.errors import SceneError
-
-    try:
-        planned = sweep.plan(args.scene, args.vary, args.overrides, args.samples, args.seed)
-        done = sweep.execute(planned, args.output, workers=args.workers, scheduler=args.scheduler,
-                             progress=False if args.quiet else None)
-    except SceneError as exc:
-        print(f"rodnet: bad input: {exc}. Nothing was run and no output was written.", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    counts = f"{done.ok} ok, {done.failed} failed" + (f", {done.pending} not run" if done.pending else "")
-    if done.signal is not None:
-        print(f"rodnet: the sweep was stopped by {done.signal} ({counts}); every finished run is "
-              f"in {done.table}; run the same command again to resume.", file=sys.stderr)
-        return 128 + int(getattr(signal, done.signal))
-    print(f"rodnet: sweep done: {done.total} runs ({counts}; {done.skipped} were complete "
-          f"already) in {done.wall_s:.1f} s wall; table in {done.table}")
-    return EXIT_FAILED if done.failed else 0
-
-
 def _validate(cases: Path, output: Path, fast: bool) -> tuple[int, str]:
     """Run every case under ``cases``; write ``output/validation.md``. Returns the exit status
     (0 when all checks pass) and the verdict: how many checks passed, where the report is."""
@@ -209,3 +187,25 @@ def _report(result) -> None:  # type: ignore[no-untyped-def]
           f"{result.directory}/")
     for key, value in s["metrics"].items():
         print(f"  {key:28s} {value:.6g}")
+
+
+def _sweep(args: argparse.Namespace) -> int:
+    """``rodnet sweep``: plan and check every run, then run them on dask (rodnet.sweep)."""
+    from rodnet import sweep
+    from rodnet.errors import SceneError
+
+    try:
+        planned = sweep.plan(args.scene, args.vary, args.overrides, args.samples, args.seed)
+        done = sweep.execute(planned, args.output, workers=args.workers, scheduler=args.scheduler,
+                             progress=False if args.quiet else None)
+    except SceneError as exc:
+        print(f"rodnet: bad input: {exc}. Nothing was run and no output was written.", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    counts = f"{done.ok} ok, {done.failed} failed" + (f", {done.pending} not run" if done.pending else "")
+    if done.signal is not None:
+        print(f"rodnet: the sweep was stopped by {done.signal} ({counts}); every finished run is "
+              f"in {done.table}; run the same command again to resume.", file=sys.stderr)
+        return 128 + int(getattr(signal, done.signal))
+    print(f"rodnet: sweep done: {done.total} runs ({counts}; {done.skipped} were complete "
+          f"already) in {done.wall_s:.1f} s wall; table in {done.table}")
+    return EXIT_FAILED if done.failed else 0
