@@ -52,6 +52,26 @@ def _parser() -> argparse.ArgumentParser:
                      help="only the models whose name contains TEXT (plus the references)")
     ben.add_argument("--limit", type=float, default=3600.0, metavar="SECONDS",
                      help="interrupt a run after this many wall seconds (default 3600)")
+    swp = sub.add_parser("sweep", help="run a scene over a grid or Latin hypercube of keys "
+                         "on a dask cluster (docs/sweeps.md)")
+    swp.add_argument("scene", type=Path, help="scene TOML file")
+    swp.add_argument("-o", "--output", type=Path, required=True,
+                     help="the sweep's folder (sweep.csv, sweep.json, runs/NNNN/); run again "
+                     "to resume")
+    swp.add_argument("--vary", action="append", default=[], metavar="KEY=V1,V2,...|KEY=LOW:HIGH",
+                     help="a key's values (a grid axis) or range (Latin hypercube; needs "
+                     "--samples); repeatable")
+    swp.add_argument("--samples", type=_positive_int, default=None, metavar="N",
+                     help="Latin-hypercube samples of the ranges (times the grid)")
+    swp.add_argument("--seed", type=int, default=0, help="seed of the Latin hypercube (default 0)")
+    swp.add_argument("--workers", type=_positive_int, default=None, metavar="N",
+                     help="single-threaded worker processes of the local cluster "
+                     "(default: one per core)")
+    swp.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                     help="an existing dask scheduler (tcp://host:8786) instead of a local cluster")
+    swp.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                     help="override a scene key in every run, as rodnet run --set (repeatable)")
+    swp.add_argument("--quiet", action="store_true", help="no progress bar or progress lines")
     for p in (run, demo):
         p.add_argument("-o", "--output", type=Path, default=None,
                        help="output directory (default: the scene's output.directory)")
@@ -89,6 +109,8 @@ def main(argv: list[str] | None = None) -> int:
 
         print(bench(args.output, args.quick, args.only, args.limit))
         return 0
+    if args.command == "sweep":
+        return _sweep(args)
     from rodnet.errors import SceneError
     from rodnet.scene import load_scene, scene_from_toml
 
@@ -104,11 +126,9 @@ def main(argv: list[str] | None = None) -> int:
     except SceneError as exc:
         print(f"rodnet: bad input: {exc}. Nothing was run and no output was written.", file=sys.stderr)
         return EXIT_BAD_INPUT
-    warnings = list(result.summary.get("warnings", []))
-    if result.status == "ok" and (scene.output.picture or scene.output.plot) and "mouth_area" in result.arrays:
-        from rodnet.viz.figures import render_in_subprocess
+    from rodnet.viz.figures import draw_run_figures
 
-        warnings += render_in_subprocess(result.directory, scene.output.picture, scene.output.plot)
+    warnings = list(result.summary.get("warnings", [])) + draw_run_figures(result, scene.output)
     for w in warnings:
         print(f"rodnet: warning: {w}", file=sys.stderr)
     _report(result)
@@ -218,3 +238,25 @@ def _report(result) -> None:  # type: ignore[no-untyped-def]
           f"{result.directory}/")
     for key, value in s["metrics"].items():
         print(f"  {key:28s} {value:.6g}")
+
+
+def _sweep(args: argparse.Namespace) -> int:
+    """``rodnet sweep``: plan and check every run, then run them on dask (rodnet.sweep)."""
+    from rodnet import sweep
+    from rodnet.errors import SceneError
+
+    try:
+        planned = sweep.plan(args.scene, args.vary, args.overrides, args.samples, args.seed)
+        done = sweep.execute(planned, args.output, workers=args.workers, scheduler=args.scheduler,
+                             progress=False if args.quiet else None)
+    except SceneError as exc:
+        print(f"rodnet: bad input: {exc}. Nothing was run and no output was written.", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    counts = f"{done.ok} ok, {done.failed} failed" + (f", {done.pending} not run" if done.pending else "")
+    if done.signal is not None:
+        print(f"rodnet: the sweep was stopped by {done.signal} ({counts}); every finished run is "
+              f"in {done.table}; run the same command again to resume.", file=sys.stderr)
+        return 128 + int(getattr(signal, done.signal))
+    print(f"rodnet: sweep done: {done.total} runs ({counts}; {done.skipped} were complete "
+          f"already) in {done.wall_s:.1f} s wall; table in {done.table}")
+    return EXIT_FAILED if done.failed else 0

@@ -75,3 +75,92 @@ class Progress:
         if self.mode == "bar":
             self.stream.write("\n")
             self.stream.flush()
+
+
+class RunsProgress:
+    """Progress of a sweep over runs: how many finished and failed, how many are running and
+    about how long the rest takes.
+
+    On a terminal a one-line bar (redrawn at most ten times a second); otherwise a log line every
+    :data:`LOG_FRACTION` of the runs or :data:`LOG_SECONDS` of wall time, whichever comes first.
+    :meth:`note` writes a line of its own (a failed run) in either mode.
+
+    Parameters
+    ----------
+    total : int
+        Runs of the sweep.
+    done : int
+        Runs already complete when this invocation starts (a resumed sweep).
+    enabled : bool, optional
+        As for :class:`Progress`.
+    stream : text stream
+        Where to write (default: standard error).
+    """
+
+    def __init__(self, total: int, done: int = 0, enabled: bool | None = None,
+                 stream: TextIO = sys.stderr) -> None:
+        self.total, self.done_before, self.stream = total, done, stream
+        self.mode = "off" if enabled is False else "bar" if enabled or stream.isatty() else "log"
+        self.start = time.perf_counter()
+        self.last_draw = self.start
+        self.next_fraction = LOG_FRACTION
+        self.finished = self.failed = self.running = 0
+        self.width = 0
+
+    def time_left(self) -> float:
+        """About how many wall seconds the runs not yet finished take (nan before the first)."""
+        new = self.finished
+        left = self.total - self.done_before - new
+        return (time.perf_counter() - self.start) * left / new if new else float("nan")
+
+    def line(self) -> str:
+        done = self.done_before + self.finished
+        left = self.time_left()
+        eta = f"about {left:.0f} s left" if left == left else "time left unknown yet"
+        return (f"{done} of {self.total} runs finished ({self.failed} failed), {self.running} "
+                f"running, wall {time.perf_counter() - self.start:.0f} s, {eta}")
+
+    def update(self, finished: int, failed: int, running: int) -> None:
+        """Report the counts of this invocation: runs finished (failed ones included), failed,
+        running now."""
+        changed = finished != self.finished
+        self.finished, self.failed, self.running = finished, failed, running
+        now = time.perf_counter()
+        if self.mode == "log":
+            fraction = (self.done_before + finished) / self.total if self.total else 1.0
+            if (fraction < self.next_fraction or not changed) and now - self.last_draw < LOG_SECONDS:
+                return
+            while self.next_fraction <= fraction:
+                self.next_fraction += LOG_FRACTION
+            self.last_draw = now
+            self._write(f"rodnet: sweep: {self.line()}\n")
+        elif self.mode == "bar" and (changed or now - self.last_draw >= 0.1):
+            self.last_draw = now
+            self._draw()
+
+    def _draw(self) -> None:
+        fraction = (self.done_before + self.finished) / self.total if self.total else 1.0
+        bar = "#" * int(30 * fraction) + "-" * (30 - int(30 * fraction))
+        text = f"\r[{bar}] {self.line()}"
+        self._write(text.ljust(self.width))
+        self.width = len(text)
+
+    def note(self, text: str) -> None:
+        """Write ``text`` as a line of its own (not in silent mode)."""
+        if self.mode == "off":
+            return
+        if self.mode == "bar":
+            self._write("\r" + " " * self.width + "\r")
+            self._write(text + "\n")
+            self._draw()
+        else:
+            self._write(text + "\n")
+
+    def close(self) -> None:
+        """End the bar's line."""
+        if self.mode == "bar":
+            self._write("\n")
+
+    def _write(self, text: str) -> None:
+        self.stream.write(text)
+        self.stream.flush()

@@ -40,14 +40,18 @@ def load_scene(path: str | Path, overrides: typing.Sequence[str] = ()) -> Scene:
         ``"section.key=value"`` (value in TOML syntax; a bare word is taken as a string),
         ``"materials[0].density=1500"`` for array sections.
     """
+    return scene_from_toml(scene_text(path), overrides, source=str(path))
+
+
+def scene_text(path: str | Path) -> str:
+    """The text of the scene file ``path``; :class:`SceneError` when it cannot be read."""
     path = Path(path)
     try:
-        text = path.read_text()
+        return path.read_text()
     except OSError as exc:
         raise SceneError("", str(path), f"cannot read the scene file {path}: {exc.strerror}") from None
     except UnicodeDecodeError:
         raise SceneError("", str(path), f"the scene file {path} is not a text (TOML) file") from None
-    return scene_from_toml(text, overrides, source=str(path))
 
 
 def scene_from_toml(text: str, overrides: typing.Sequence[str] = (), source: str = "<scene>") -> Scene:

@@ -9,6 +9,7 @@ each thread in thread order, then the nodes of each ``[[rods]]`` entry.
 
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass
 
@@ -150,12 +151,15 @@ class _Builder:
         self.segs: list[NDArray[np.int64]] = []
         self.mat: list[int] = []
         self.thread: list[int] = []
+        self.starts: list[int] = []
+        """The index of the first node of each block of ``rest``."""
         self.n = 0
         self.n_threads = 0
 
     def add_nodes(self, rest: NDArray, pos: NDArray, vel: NDArray, mass: NDArray) -> NDArray[np.int64]:
         idx = np.arange(self.n, self.n + len(rest))
         self.rest.append(rest), self.pos.append(pos), self.vel.append(vel), self.mass.append(mass)
+        self.starts.append(self.n)
         self.n += len(rest)
         return idx
 
@@ -166,11 +170,18 @@ class _Builder:
         self.thread += [self.n_threads] * (len(nodes) - 1)
         self.n_threads += 1
 
+    def rest_position(self, i: int) -> NDArray[np.float64]:
+        """The stress-free position (3,) of node ``i`` (without stacking every block: a net adds
+        a block per thread, and stacking them all for each made building the 21 x 21 net take
+        0.3 s)."""
+        k = bisect.bisect_right(self.starts, i) - 1
+        return self.rest[k][i - self.starts[k]]
+
     def interior(self, a: int, b: int, n: int, scale: float, center: NDArray) -> NDArray[np.int64]:
         """Add the ``n - 1`` interior nodes of a thread from node ``a`` to ``b``, evenly spaced."""
-        rest = np.vstack(self.rest)
         s = np.arange(1, n)[:, None] / n
-        r = rest[a] + s * (rest[b] - rest[a])
+        ra, rb = self.rest_position(a), self.rest_position(b)
+        r = ra + s * (rb - ra)
         zeros = np.zeros_like(r)
         return self.add_nodes(r, center + scale * (r - center), zeros, np.zeros(len(r)))
 

@@ -47,6 +47,28 @@ def render_in_subprocess(directory: Path, picture: bool, plot: bool, timeout_s: 
     return []
 
 
+def draw_run_figures(result: Any, output: Any) -> list[str]:
+    """Draw what ``rodnet run`` draws after a run: for a completed net run whose scene asks for
+    them (``output.picture``, ``output.plot``), ``net.png`` and ``deployment.png`` in its
+    directory (:func:`render_in_subprocess`).
+
+    Parameters
+    ----------
+    result : rodnet.run.RunResult
+        The run.
+    output : rodnet.config.OutputSpec
+        The scene's ``[output]``.
+
+    Returns
+    -------
+    warnings : list of str
+        Why a figure could not be drawn, if it could not.
+    """
+    if result.status == "ok" and (output.picture or output.plot) and "mouth_area" in result.arrays:
+        return render_in_subprocess(result.directory, output.picture, output.plot)
+    return []
+
+
 # ---------------------------------------------------------------------------------------------
 # deployment.png
 
