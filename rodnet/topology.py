@@ -9,6 +9,7 @@ each thread in thread order, then the nodes of each ``[[rods]]`` entry.
 
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass
 
@@ -150,14 +151,22 @@ class _Builder:
         self.segs: list[NDArray[np.int64]] = []
         self.mat: list[int] = []
         self.thread: list[int] = []
+        self.starts: list[int] = []
+        """The first node of each block of ``rest``."""
         self.n = 0
         self.n_threads = 0
 
     def add_nodes(self, rest: NDArray, pos: NDArray, vel: NDArray, mass: NDArray) -> NDArray[np.int64]:
         idx = np.arange(self.n, self.n + len(rest))
         self.rest.append(rest), self.pos.append(pos), self.vel.append(vel), self.mass.append(mass)
+        self.starts.append(self.n)
         self.n += len(rest)
         return idx
+
+    def rest_of(self, node: int) -> NDArray[np.float64]:
+        """The stress-free position (3,) of a node added so far (without stacking every block)."""
+        block = bisect.bisect_right(self.starts, node) - 1
+        return self.rest[block][node - self.starts[block]]
 
     def add_chain(self, nodes: NDArray[np.int64], material: int) -> None:
         """Segments joining consecutive ``nodes``, all in one new thread."""
@@ -168,9 +177,9 @@ class _Builder:
 
     def interior(self, a: int, b: int, n: int, scale: float, center: NDArray) -> NDArray[np.int64]:
         """Add the ``n - 1`` interior nodes of a thread from node ``a`` to ``b``, evenly spaced."""
-        rest = np.vstack(self.rest)
+        start, end = self.rest_of(a), self.rest_of(b)
         s = np.arange(1, n)[:, None] / n
-        r = rest[a] + s * (rest[b] - rest[a])
+        r = start + s * (end - start)
         zeros = np.zeros_like(r)
         return self.add_nodes(r, center + scale * (r - center), zeros, np.zeros(len(r)))
 
