@@ -20,7 +20,7 @@ from rodnet.integrate.system import FrameSink, System
 from rodnet.kernels.contact_compiled import contact_scratch
 from rodnet.kernels import threads
 from rodnet.kernels.explicit import (Bodies, ExplicitProblem, Marched, Scratch, StepControl, march,
-                                     march_parallel)
+                                     march_nodes, march_parallel, node_forces_only)
 from rodnet.state import State
 
 
@@ -96,12 +96,16 @@ def integrate_explicit(system: System, state: State, times: NDArray[np.float64],
     x, quat, v, W = state.q.x, state.q.quat, state.velocities, state.spin
     loop = march_parallel if threads.current() > 1 else march
     rods = problem.rods.rest_length.shape[0] > 0
+    nodes_only = node_forces_only(problem, control)   # the fused loop of nodes-only problems
     stats = StepStats() if stats is None else stats  # filled in place: kept if the run fails
     on_frame(float(times[0]), state)
     for t_start, t_end in zip(times[:-1], times[1:]):
         n, h = whole_steps(t_start, t_end, control.dt)
-        done = loop(x, quat, v, W, bodies, float(t_start), float(t_end), n, h, problem, control,
-                    work)
+        if nodes_only:
+            done = march_nodes(x, v, float(t_start), float(t_end), n, h, problem, work.f_node)
+        else:
+            done = loop(x, quat, v, W, bodies, float(t_start), float(t_end), n, h, problem,
+                        control, work)
         stats.function_evaluations += done.evaluations
         state.friction_work += done.friction_work
         if rods:

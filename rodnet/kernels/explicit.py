@@ -24,8 +24,10 @@ than its travel limit (E3); the step is then redone from the same state (fixed s
 rest of the interval anew).
 
 :func:`march` and :func:`march_parallel` are the same loop (:func:`_march`) compiled without and
-with numba's parallel loops over elements and nodes; :func:`forces` evaluates the forces alone
-(RK45, tests).
+with numba's parallel loops over elements and nodes; :func:`march_nodes` is the loop of problems
+with position nodes only (the lumped model, cable and Kirchhoff threads without bodies), fused
+and on one thread (measured on the reference deployment, validation/benchmarks/results/peers.md);
+:func:`forces` evaluates the forces alone (RK45, tests).
 """
 
 from __future__ import annotations
@@ -361,6 +363,47 @@ def march_parallel(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control,
                    scratch):  # pragma: no cover - compiled
     """:func:`march` with the loops over rod elements and nodes on numba's threads."""
     return _march(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control, scratch)
+
+
+def node_forces_only(problem: ExplicitProblem, control: StepControl) -> bool:
+    """Whether :func:`march_nodes` can run ``problem``: fixed steps, forces on position nodes
+    only (segments, bending hinges, dead loads, gravity), no rotations, rod elements or bodies."""
+    return (not control.rotation_controlled and problem.rotations.inertia.shape[0] == 0
+            and problem.rods.rest_length.shape[0] == 0 and problem.contact.kind.shape[0] == 0)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def march_nodes(x, v, t0, t_end, n, h, problem, f_node):  # pragma: no cover - compiled
+    """:func:`march` for a problem of :func:`node_forces_only`: ``n`` fixed steps of ``h`` [s]
+    from ``t0`` to ``t_end``, each the forces (S7), (K3), (K4) and the update (S9) with the
+    next step's start force (the node weights) written in the same pass over the nodes; the
+    same arithmetic in the same order as :func:`march`, so the same result to the last bit.
+    ``f_node`` (N, 3) is work space. Returns a :class:`Marched`."""
+    nodes, loads, seg, hinges = problem.nodes, problem.loads, problem.segments, problem.hinges
+    inv_mass, weight = nodes.inv_mass, nodes.weight
+    no_quat, no_moment = np.zeros((0, 4)), np.zeros((0, 3))
+    peak = 0.0
+    for i in range(x.shape[0]):
+        for c in range(3):
+            f_node[i, c] = weight[i, c]
+    for k in range(n):
+        _apply_loads(t0 + k * h, no_quat, loads, f_node, no_moment)
+        if seg.pairs.shape[0] > 0:
+            peak = max(peak, segment_forces(x, v, f_node, seg.pairs, seg.rest_length, seg.EA,
+                                            seg.etaA, seg.kink_strain, seg.tension_only))
+        if hinges.nodes.shape[0] > 0:
+            hinge_forces(x, v, f_node, hinges.nodes, hinges.stiffness, hinges.tau, hinges.rest)
+        bad = 0
+        for i in range(x.shape[0]):
+            for c in range(3):
+                v[i, c] += h * f_node[i, c] * inv_mass[i, c]
+                x[i, c] += h * v[i, c]
+                f_node[i, c] = weight[i, c]
+            if not (math.isfinite(x[i, 0]) and math.isfinite(x[i, 1]) and math.isfinite(x[i, 2])):
+                bad += 1
+        if bad:
+            return Marched(1, t0 + (k + 1) * h, k + 1, k + 1, h, h, peak, 0.0, 0.0)
+    return Marched(0, t_end, n, n, h if n else np.inf, h if n else 0.0, peak, 0.0, 0.0)
 
 
 @numba.njit(cache=True)

@@ -25,8 +25,8 @@ from rodnet.kernels.cable import cable_tangents, element_blocks
 from rodnet.kernels.cosserat_compiled import RodElements, no_rod_elements
 from rodnet.kernels.hinge import Hinges, hinge_energy, hinge_force, hinge_frequency, no_hinges
 from rodnet.kernels.schedule import LoadSchedule, factors
-from rodnet.kernels.segments import Segments
-from rodnet.kernels.tension import axial_energy, axial_force, step_potential, step_strain_rate
+from rodnet.kernels.segments import Segments, segment_states
+from rodnet.kernels.tension import axial_force, step_potential, step_strain_rate
 from rodnet.models.loads import constant_gravity, dead_loads
 from rodnet.state import Configuration, Linearization, StepRate
 from rodnet.topology import Structure
@@ -271,20 +271,28 @@ class LumpedModel:
         """What a saved frame holds: positions, velocities (N, 3) and segment ``tension`` (E,)."""
         vv = np.asarray(v).reshape(-1, 3)
         return {"positions": np.array(q.x), "velocities": np.array(vv),
-                "tension": self.tension(q.x, vv)}
+                "tension": self.segment_states(q.x, vv)[0]}
+
+    def segment_states(self, x: FloatArray, v: FloatArray) -> tuple[FloatArray, float]:
+        """Axial force of every segment [N] (E,), as :meth:`tension`, and the elastic energy
+        they store [J], (S6), in one compiled pass (what every saved frame needs)."""
+        tension = np.empty(len(self.segments))
+        elastic = segment_states(np.ascontiguousarray(x), np.ascontiguousarray(v),
+                                 self.segments, self.rest_length, self.EA, self.etaA,
+                                 float(self.kink_strain), bool(self.tension_only), tension)
+        return tension, float(elastic)
 
     def energy(self, q: Configuration, v: FloatArray, t: float) -> dict[str, float]:
         """Kinetic, elastic and external-load potential energy [J], (S8); elastic includes the
         hinges' bending energy (K2)."""
         x, vv = q.x, np.asarray(v).reshape(-1, 3)
-        _, _, e, _ = self.segment_kinematics(x, vv)
-        elastic = axial_energy(e, self.EA, self.rest_length, self.kink_strain, self.tension_only)
+        elastic = self.segment_states(x, vv)[1]
         if len(self.hinges.nodes):
             h = self.hinges
-            elastic = np.append(elastic, hinge_energy(x, h.nodes, h.stiffness, h.rest))
+            elastic += float(hinge_energy(x, h.nodes, h.stiffness, h.rest).sum())
         kinetic = 0.5 * np.sum(self.mass * np.einsum("ij,ij->i", vv, vv))
         potential = -float(np.sum(self.external_force(t) * x))
-        return {"kinetic": float(kinetic), "elastic": float(elastic.sum()), "potential": potential}
+        return {"kinetic": float(kinetic), "elastic": elastic, "potential": potential}
 
     def check_frame(self, t: float, frame: dict[str, FloatArray]) -> None:
         """Nothing to check beyond the run's own checks."""

@@ -65,6 +65,68 @@ def test_compiled_forces_equal_numpy_forces() -> None:
         np.testing.assert_allclose(f, p.model.force(x, v, 0.3), rtol=1e-12, atol=1e-9)
 
 
+def _segment_pairs(rest_length, stretch, rng):
+    """Positions (2S, 3) of S separate two-node segments, node 2i to 2i + 1, stretched by
+    ``stretch`` (S,) along random directions, with random velocities (2S, 3)."""
+    d = rng.normal(size=(len(stretch), 3))
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    a = rng.normal(size=(len(stretch), 3))
+    x = np.stack([a, a + (rest_length * stretch)[:, None] * d], axis=1).reshape(-1, 3)
+    return x, rng.normal(size=x.shape), np.arange(2 * len(stretch)).reshape(-1, 2)
+
+
+def test_slack_segments_skipped_exactly() -> None:
+    """Segments within a few rounding errors of their rest length, the kink and beyond: the
+    compiled forces (which pass over segments shorter than (1 - SLACK_MARGIN) of their rest
+    length unmeasured) equal a direct evaluation of the law at every segment."""
+    from rodnet.kernels.segments import SLACK_MARGIN, segment_forces
+
+    rng = np.random.default_rng(4)
+    eps = np.finfo(float).eps
+    stretch = 1.0 + np.concatenate([np.arange(-40, 41) * eps, [-2 * SLACK_MARGIN, -SLACK_MARGIN,
+                                    -0.5 * SLACK_MARGIN, 0.5e-6, 2e-6, 1e-3, -1e-3, -0.5]])
+    rest = rng.uniform(0.1, 3.0, len(stretch))
+    x, v, pairs = _segment_pairs(rest, stretch, rng)
+    EA, etaA = np.full(len(rest), 1e4), np.full(len(rest), 10.0)
+    for kink in (0.0, 1e-6):
+        f = np.zeros_like(x)
+        peak = segment_forces(x, v, f, pairs, rest, EA, etaA, kink, True)
+        d = x[1::2] - x[0::2]
+        length = np.sqrt(np.einsum("ij,ij->i", d, d))
+        t = d / length[:, None]
+        rate = np.einsum("ij,ij->i", v[1::2] - v[0::2], t) / rest
+        n = axial_force(length / rest - 1.0, rate, EA, etaA, kink, True)
+        np.testing.assert_allclose(f[0::2], n[:, None] * t, rtol=1e-13, atol=0.0)
+        np.testing.assert_allclose(f[1::2], -n[:, None] * t, rtol=1e-13, atol=0.0)
+        assert peak == pytest.approx(n.max(), rel=1e-13)
+        assert (n > 0).sum() >= 4 and (n == 0).sum() >= 40   # both branches exercised
+
+
+def test_frame_tension_and_energy_equal_the_law() -> None:
+    """The compiled pass of a saved frame gives axial_force and axial_energy (S3)-(S6) of every
+    segment: slack, inside the kink, taut, and the linear law."""
+    from rodnet.kernels.segments import segment_states
+    from rodnet.kernels.tension import axial_energy
+
+    rng = np.random.default_rng(5)
+    stretch = np.concatenate([rng.uniform(0.9, 1.1, 40), 1.0 + rng.uniform(0.0, 2e-6, 10)])
+    rest = rng.uniform(0.1, 3.0, len(stretch))
+    x, v, pairs = _segment_pairs(rest, stretch, rng)
+    EA, etaA = rng.uniform(1e3, 1e5, len(rest)), rng.uniform(0.0, 50.0, len(rest))
+    d = x[1::2] - x[0::2]
+    length = np.linalg.norm(d, axis=1)
+    e = length / rest - 1.0
+    rate = np.einsum("ij,ij->i", v[1::2] - v[0::2], d / length[:, None]) / rest
+    for kink, tension_only in ((0.0, True), (1e-6, True), (1e-6, False)):
+        tension = np.empty(len(rest))
+        energy = segment_states(x, v, pairs, rest, EA, etaA, kink, tension_only, tension)
+        np.testing.assert_allclose(tension, axial_force(e, rate, EA, etaA, kink, tension_only),
+                                   rtol=1e-12, atol=1e-12)
+        expected = axial_energy(e, EA, rest, kink, tension_only).sum()
+        assert energy == pytest.approx(expected, rel=1e-12)
+        assert (tension > 0).any() and (tension == 0).any() == tension_only
+
+
 def test_tension_only_law_never_pushes() -> None:
     e = np.array([-0.1, 0.0, 1e-3, 1e-3, 2e-3])
     rate = np.array([0.0, 5.0, 0.0, -100.0, 1.0])
@@ -154,3 +216,35 @@ def _tmp():
     import tempfile
 
     return tempfile.mkdtemp(prefix="rodnet-test-")
+
+
+@pytest.mark.parametrize("axial", ["tension-only", "linear"])
+def test_fused_node_loop_equals_the_general_loop(axial) -> None:
+    """march_nodes (the loop of the lumped model without bodies) and the general march give
+    the same positions, velocities and largest tension to the last bit, with gravity and a
+    ramped dead load."""
+    from rodnet.integrate.explicit import scratch
+    from rodnet.kernels import explicit as kx
+
+    text = small_net_toml(n=2) + ('\n[[loads]]\nnode = "net:knot:12"\nforce = [3.0, -2.0, 40.0]'
+                                  '\nramp = 0.02\n')
+    p = prepare(scene_from_toml(text, [f"model.axial={axial}", "model.type=lumped",
+                                       "simulation.gravity=[0, 0, -9.81]"]))
+    problem, control = p.system.explicit_problem()
+    assert kx.node_forces_only(problem, control) and len(problem.loads.nodes) == 1
+    z = np.zeros
+    bodies = kx.Bodies(z((0, 3)), z((0, 3)), z((0, 4)), z((0, 3, 3)), z((0, 3)), z((0, 3)))
+    x = [p.state.q.x.copy() for _ in range(2)]
+    v = [p.state.velocities.copy() for _ in range(2)]
+    work = [scratch(problem) for _ in range(2)]
+    peaks = [0.0, 0.0]
+    for frame in range(5):
+        t0, t1 = 0.01 * frame, 0.01 * (frame + 1)
+        n = int(np.ceil(0.01 / control.dt))
+        a = kx.march(x[0], z((0, 4)), v[0], z((0, 3)), bodies, t0, t1, n, (t1 - t0) / n,
+                     problem, control, work[0])
+        b = kx.march_nodes(x[1], v[1], t0, t1, n, (t1 - t0) / n, problem, work[1].f_node)
+        assert a == b
+        peaks = [max(peaks[0], a.peak), max(peaks[1], b.peak)]
+    assert np.array_equal(x[0], x[1]) and np.array_equal(v[0], v[1]) and peaks[0] > 0.0
+    assert np.abs(x[0] - p.state.q.x).max() > 0.01   # the net moved

@@ -79,27 +79,33 @@ def pyelastica_cpu_per_second(seconds: float = 0.02) -> float | None:
 
 def _pyelastica_run(seconds: float) -> float | None:
     try:
-        import elastica as ea
+        done = pyelastica_thread(seconds)
     except ImportError:
         return None
+    return done[1] / seconds
+
+
+def pyelastica_thread(seconds: float, dt: float = 5.6e-7, elements: int = 20) -> tuple:
+    """The thread in PyElastica (position Verlet at ``dt`` [s]) for ``seconds`` [s]: the rod,
+    the CPU and wall seconds of its time loop and its steps. Raises ImportError without it."""
+    import elastica as ea
 
     class Sim(ea.BaseSystemCollection, ea.Constraints, ea.Forcing, ea.Damping):
         pass
 
     sim = Sim()
-    rod = ea.CosseratRod.straight_rod(20, np.zeros(3), np.array([1.0, 0, 0]), np.array([0, 0, 1.0]),
-                                      1.5, 0.5e-3, 1150.0, youngs_modulus=2.5e9,
-                                      shear_modulus=2.5e9 / 2.7)
+    rod = ea.CosseratRod.straight_rod(elements, np.zeros(3), np.array([1.0, 0, 0]),
+                                      np.array([0, 0, 1.0]), 1.5, 0.5e-3, 1150.0,
+                                      youngs_modulus=2.5e9, shear_modulus=2.5e9 / 2.7)
     sim.append(rod)
     sim.constrain(rod).using(ea.OneEndFixedBC, constrained_position_idx=(0,),
                              constrained_director_idx=(0,))
     sim.add_forcing_to(rod).using(ea.GravityForces, acc_gravity=np.array([0, 0, -9.81]))
     sim.finalize()
-    dt = 5.6e-7
-    steps = int(seconds / dt)
-    cpu = time.process_time()
+    steps = int(round(seconds / dt))
+    cpu, wall = time.process_time(), time.perf_counter()
     ea.integrate(ea.PositionVerlet(), sim, seconds, steps, progress_bar=False)
-    return (time.process_time() - cpu) / seconds
+    return rod, time.process_time() - cpu, time.perf_counter() - wall, steps
 
 
 def timed(dt: float, integrator: str, rho_inf: float, repeats: int = REPEATS) -> dict:
