@@ -29,11 +29,18 @@ from numpy.typing import NDArray
 FloatArray = NDArray[np.float64]
 
 
+AS_SCRIPT = "import runpy, sys; sys.argv = sys.argv[1:]; runpy.run_path(sys.argv[0], run_name='__main__')"
+"""Runs this file as a script: without importing the rodnet package (numba, scipy and the
+kernels), which ``python -m rodnet.viz.figures`` would do first (2.5 CPU s of the subprocess's
+5 - 8: validation/benchmarks/results/cold_start.md). Scenes with bodies import the body shapes
+from rodnet when drawn."""
+
+
 def render_in_subprocess(directory: Path, picture: bool, plot: bool, timeout_s: float = 300.0) -> list[str]:
     """Write ``net.png`` and/or ``deployment.png`` in ``directory``; return warnings, if any."""
     env = dict(os.environ)
     env.setdefault("PYVISTA_OFF_SCREEN", "true")
-    args = [sys.executable, "-m", "rodnet.viz.figures", str(directory)]
+    args = [sys.executable, "-c", AS_SCRIPT, __file__, str(directory)]
     args += ["--picture"] if picture else []
     args += ["--plot"] if plot else []
     try:

@@ -100,3 +100,17 @@ def test_capture_figures_are_drawn(capture_run: Path) -> None:
     for name in ("net.png", "deployment.png"):
         png = (capture_run / name).read_bytes()
         assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
+
+
+def test_the_pictures_process_runs_the_file_without_the_package(tmp_path: Path) -> None:
+    """The pictures' subprocess runs a file as a script with its arguments and imports neither
+    rodnet nor numba for it (what ``python -m rodnet.viz.figures`` would import first)."""
+    from rodnet.viz.figures import AS_SCRIPT
+
+    probe = tmp_path / "probe.py"
+    probe.write_text("import json, sys\n"
+                     "print(json.dumps([sys.argv[1:], sorted({'rodnet', 'numba'} & set(sys.modules))]))\n")
+    done = subprocess.run([sys.executable, "-c", AS_SCRIPT, str(probe), "out", "--plot"],
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout) == [["out", "--plot"], []]
