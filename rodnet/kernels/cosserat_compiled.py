@@ -398,10 +398,10 @@ def _step_potential_kernel(rest_length, reference_strain, stiffness, tau, x, q, 
     energy = np.empty(n)
     for e in range(n):
         (p0, p1, p2), _, (g0, g1, g2) = _kinematics(x, q, e)
-        Le = rest_length[e]
-        eps = (g0 / Le - reference_strain[e, 0], g1 / Le - reference_strain[e, 1],
-               g2 / Le - reference_strain[e, 2], p0 / Le - reference_strain[e, 3],
-               p1 / Le - reference_strain[e, 4], p2 / Le - reference_strain[e, 5])
+        inv_le = 1.0 / rest_length[e]
+        eps = (g0 * inv_le - reference_strain[e, 0], g1 * inv_le - reference_strain[e, 1],
+               g2 * inv_le - reference_strain[e, 2], p0 * inv_le - reference_strain[e, 3],
+               p1 * inv_le - reference_strain[e, 4], p2 * inv_le - reference_strain[e, 5])
         bulk = 0.0
         for k in range(1, 6):
             d = eps[k] - step_reference[e, k]
@@ -759,19 +759,21 @@ def rod_forces(x, quat, v, W, rods, force, monitor):  # pragma: no cover - compi
         norm = np.sqrt(rw * rw + ss)
         if rw >= 0.0:
             twice_cos2 = norm + rw
-            t = s / twice_cos2
+            inv_tc = 1.0 / twice_cos2
+            t = s * inv_tc
         else:
             twice_cos2 = ss / (norm - rw)
+            inv_tc = 1.0 / twice_cos2
             t = (norm - rw) / s
         t2 = t * t
         if t2 < _ATAN_SERIES_T2:  # phi = 4 atan(t) = 4 t a(t^2), phi / s = 4 a(t^2) / twice_cos2
-            factor = 4.0 * _atan_series(t2) / twice_cos2
+            factor = 4.0 * _atan_series(t2) * inv_tc
         else:
             factor = 2.0 * np.arctan2(s, rw) / s
         p0, p1, p2 = factor * rx, factor * ry, factor * rz
         phi = np.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
-        hw = np.sqrt(twice_cos2 / (2.0 * norm))
-        hs = 1.0 / (2.0 * norm * hw)
+        hw = np.sqrt(0.5 * twice_cos2 / norm)
+        hs = hw * inv_tc    # = 1 / (2 |r| hw)
         hx, hy, hz = hs * rx, hs * ry, hs * rz
         if phi < rods.beta_angle:
             beta = _series8(series, 0, phi * phi)
@@ -791,10 +793,10 @@ def rod_forces(x, quat, v, W, rods, force, monitor):  # pragma: no cover - compi
         g0 = R[0] * d0 + R[3] * d1 + R[6] * d2
         g1 = R[1] * d0 + R[4] * d1 + R[7] * d2
         g2 = R[2] * d0 + R[5] * d1 + R[8] * d2
-        Le = rest_length[e]
-        eps = (g0 / Le - reference_strain[e, 0], g1 / Le - reference_strain[e, 1],
-               g2 / Le - reference_strain[e, 2], p0 / Le - reference_strain[e, 3],
-               p1 / Le - reference_strain[e, 4], p2 / Le - reference_strain[e, 5])
+        inv_le = 1.0 / rest_length[e]
+        eps = (g0 * inv_le - reference_strain[e, 0], g1 * inv_le - reference_strain[e, 1],
+               g2 * inv_le - reference_strain[e, 2], p0 * inv_le - reference_strain[e, 3],
+               p1 * inv_le - reference_strain[e, 4], p2 * inv_le - reference_strain[e, 5])
         # strain rates (as _strains_and_rates)
         vd0, vd1, vd2 = v[i2, 0] - v[i1, 0], v[i2, 1] - v[i1, 1], v[i2, 2] - v[i1, 2]
         w0, w1_, w2_ = b0 - a0, b1 - a1, b2 - a2
@@ -803,7 +805,6 @@ def rod_forces(x, quat, v, W, rods, force, monitor):  # pragma: no cover - compi
                             0.5 * (a2 + b2) + beta * c2)
         cc0, cc1, cc2 = _cross(p0, p1, p2, c0, c1, c2)
         k0, k1, k2 = _cross(p0, p1, p2, a0, a1, a2)
-        inv_le = 1.0 / Le
         rate = ((R[0] * vd0 + R[3] * vd1 + R[6] * vd2 + s0) * inv_le,
                 (R[1] * vd0 + R[4] * vd1 + R[7] * vd2 + s1) * inv_le,
                 (R[2] * vd0 + R[5] * vd1 + R[8] * vd2 + s2) * inv_le,

@@ -249,7 +249,8 @@ def _update(x, quat, v, W, f_node, m_node, nodes, rotations, h):  # pragma: no c
         qz = aw * bz + ax * by - ay * bx + az * bw
         norm = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
         if math.isfinite(norm) and norm > 0.0:
-            quat[r, 0], quat[r, 1], quat[r, 2], quat[r, 3] = qw / norm, qx / norm, qy / norm, qz / norm
+            inv = 1.0 / norm
+            quat[r, 0], quat[r, 1], quat[r, 2], quat[r, 3] = qw * inv, qx * inv, qy * inv, qz * inv
         else:
             bad += 1
     return bad == 0
