@@ -398,10 +398,10 @@ def _step_potential_kernel(rest_length, reference_strain, stiffness, tau, x, q, 
     energy = np.empty(n)
     for e in range(n):
         (p0, p1, p2), _, (g0, g1, g2) = _kinematics(x, q, e)
-        inv_le = 1.0 / rest_length[e]
-        eps = (g0 * inv_le - reference_strain[e, 0], g1 * inv_le - reference_strain[e, 1],
-               g2 * inv_le - reference_strain[e, 2], p0 * inv_le - reference_strain[e, 3],
-               p1 * inv_le - reference_strain[e, 4], p2 * inv_le - reference_strain[e, 5])
+        Le = rest_length[e]
+        eps = (g0 / Le - reference_strain[e, 0], g1 / Le - reference_strain[e, 1],
+               g2 / Le - reference_strain[e, 2], p0 / Le - reference_strain[e, 3],
+               p1 / Le - reference_strain[e, 4], p2 / Le - reference_strain[e, 5])
         bulk = 0.0
         for k in range(1, 6):
             d = eps[k] - step_reference[e, k]
