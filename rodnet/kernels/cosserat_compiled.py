@@ -747,6 +747,7 @@ def rod_forces(x, quat, v, W, rods, force, monitor):  # pragma: no cover - compi
     series, stiffness, tau = rods.series, rods.stiffness, rods.tau
     rest_length, reference_strain = rods.rest_length, rods.reference_strain
     tension_only, kink = rods.tension_only, rods.kink
+    beta_angle, gamma_angle = rods.beta_angle, rods.gamma_angle  # no named tuple in a parallel loop
     for e in numba.prange(rest_length.shape[0]):  # elements are independent: split over threads
         i1, i2 = pos[e, 0], pos[e, 1]
         (w1, x1, y1, z1), (a0, a1, a2) = _end_state(quat, W, oq, oR, e, 0, rot[e, 0])
@@ -775,11 +776,11 @@ def rod_forces(x, quat, v, W, rods, force, monitor):  # pragma: no cover - compi
         hw = np.sqrt(0.5 * twice_cos2 / norm)
         hs = hw * inv_tc    # = 1 / (2 |r| hw)
         hx, hy, hz = hs * rx, hs * ry, hs * rz
-        if phi < rods.beta_angle:
+        if phi < beta_angle:
             beta = _series8(series, 0, phi * phi)
         else:
             beta = t / (2.0 * phi)
-        if phi < rods.gamma_angle:
+        if phi < gamma_angle:
             gamma = _series8(series, 2, phi * phi)
         else:
             inv_p = 1.0 / phi
