@@ -42,8 +42,8 @@ def scratch(problem: ExplicitProblem) -> Scratch:
     """Work arrays of the loop for ``problem``."""
     n, r = problem.nodes.inv_mass.shape[0], problem.rotations.inertia.shape[0]
     e, b = problem.rods.rest_length.shape[0], problem.contact.kind.shape[0]
-    return Scratch(np.empty((n, 3)), np.empty((r, 3)), np.empty((e, 2, 3)), np.empty((e, 2, 4)),
-                   np.empty((e, 12)), np.empty((e, 12)), np.empty((e, 2)), np.empty((9, 3)),
+    return Scratch(np.empty((n, 3)), np.empty((r, 3)), np.empty((e, 12)), np.empty((e, 2)),
+                   np.empty((9, 3)),
                    contact_scratch(n, b))
 
 

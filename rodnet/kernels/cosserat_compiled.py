@@ -674,60 +674,173 @@ def no_rod_elements() -> RodElements:
                        z(0), z((0, 6)), z((0, 6)), z(0), True, 0.0, *SERIES_ARGUMENTS)
 
 
+@numba.njit(cache=True)
+def _quat_product(aw, ax, ay, az, bw, bx, by, bz):  # pragma: no cover - compiled
+    """``a ⊗ b`` of two quaternions given by their components (quat_multiply)."""
+    return (aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw)
+
+
+@numba.njit(cache=True)
+def _end_state(quat, W, offset_q, offset_R, e, s, r):  # pragma: no cover - compiled
+    """Material quaternion ``q_node Q`` (4-tuple) and angular velocity ``Q^T W_node`` (3-tuple,
+    end frame) of end ``s`` of element ``e`` on rotation node ``r``, as
+    :meth:`rodnet.models.cosserat.model.CosseratModel._element_state` (no offset arrays: ``Q = I``)."""
+    w, u, y, z = quat[r, 0], quat[r, 1], quat[r, 2], quat[r, 3]
+    W0, W1, W2 = W[r, 0], W[r, 1], W[r, 2]
+    if offset_q.shape[0] == 0:
+        return (w, u, y, z), (W0, W1, W2)
+    O = offset_R
+    return (_quat_product(w, u, y, z, offset_q[e, s, 0], offset_q[e, s, 1], offset_q[e, s, 2],
+                          offset_q[e, s, 3]),
+            (O[e, s, 0, 0] * W0 + O[e, s, 1, 0] * W1 + O[e, s, 2, 0] * W2,
+             O[e, s, 0, 1] * W0 + O[e, s, 1, 1] * W1 + O[e, s, 2, 1] * W2,
+             O[e, s, 0, 2] * W0 + O[e, s, 1, 2] * W1 + O[e, s, 2, 2] * W2))
+
+
+@numba.njit(cache=True)
+def _series8(series, row, x):  # pragma: no cover - compiled
+    """:func:`_horner` unrolled for the eight coefficients of :data:`SERIES_ARGUMENTS`."""
+    c = series[row]
+    return c[0] + x * (c[1] + x * (c[2] + x * (c[3] + x * (c[4] + x * (c[5] + x * (c[6]
+                                                                                 + x * c[7]))))))
+
+
+_ATAN_SERIES_T2 = 0.0157
+"""``tan(phi/4)^2`` below which (``phi`` < 0.4998 rad) :func:`_atan_series` takes the logarithm's
+angle: its eleven terms leave a remainder below 1e-21 there."""
+
+
+@numba.njit(cache=True)
+def _atan_series(t2):  # pragma: no cover - compiled
+    """``atan(t) / t`` from ``t^2``: the Taylor series through ``t^20``, by Horner's rule."""
+    a = -1.0 / 19.0 + t2 * (1.0 / 21.0)
+    a = 1.0 / 17.0 + t2 * a
+    a = -1.0 / 15.0 + t2 * a
+    a = 1.0 / 13.0 + t2 * a
+    a = -1.0 / 11.0 + t2 * a
+    a = 1.0 / 9.0 + t2 * a
+    a = -1.0 / 7.0 + t2 * a
+    a = 1.0 / 5.0 + t2 * a
+    a = -1.0 / 3.0 + t2 * a
+    return 1.0 + t2 * a
+
+
 @numba.njit(inline="always")
-def gather_element_state(x, quat, v, W, pos_nodes, rot_nodes, offset_q, offset_R, xe, qe,
-                         ve):  # pragma: no cover - compiled
-    """Element end positions ``xe`` (E, 2, 3), material quaternions ``qe`` (E, 2, 4) and velocities
-    ``ve`` (E, 12) ``[v_a, W_a, v_b, W_b]`` (angular velocities in the end's material frame) from
-    the node state, as :meth:`rodnet.models.cosserat.model.CosseratModel._element_state`.
-
-    ``offset_q`` (E, 2, 4) and ``offset_R`` (E, 2, 3, 3): the end offsets ``Q`` as quaternions and
-    matrices (``R_end = R_node Q``, ``W_end = Q^T W_node``), or arrays with no rows when there are
-    none.
-    """
-    has_offset = offset_q.shape[0] > 0
-    for e in numba.prange(pos_nodes.shape[0]):
-        for s in range(2):
-            a, r, c = pos_nodes[e, s], rot_nodes[e, s], 6 * s
-            for k in range(3):
-                xe[e, s, k] = x[a, k]
-                ve[e, c + k] = v[a, k]
-            if has_offset:
-                w1, x1, y1, z1 = quat[r, 0], quat[r, 1], quat[r, 2], quat[r, 3]
-                w2, x2, y2, z2 = offset_q[e, s, 0], offset_q[e, s, 1], offset_q[e, s, 2], offset_q[e, s, 3]
-                qe[e, s, 0] = w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2
-                qe[e, s, 1] = w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2
-                qe[e, s, 2] = w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2
-                qe[e, s, 3] = w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2
-                for k in range(3):
-                    ve[e, c + 3 + k] = (offset_R[e, s, 0, k] * W[r, 0] + offset_R[e, s, 1, k] * W[r, 1]
-                                        + offset_R[e, s, 2, k] * W[r, 2])
-            else:
-                for k in range(4):
-                    qe[e, s, k] = quat[r, k]
-                for k in range(3):
-                    ve[e, c + 3 + k] = W[r, k]
-
-
-@numba.njit(inline="always")
-def rod_forces(x, quat, v, W, rods, xe, qe, ve, force, monitor):  # pragma: no cover - compiled
+def rod_forces(x, quat, v, W, rods, force, monitor):  # pragma: no cover - compiled
     """Element forces ``force`` (E, 12) in the element ends' frames from the node state
     (positions ``x``, velocities ``v`` (N, 3), quaternions ``quat``, body angular velocities
     ``W`` (R, 3)); returns the largest axial force [N] and the largest element rotation
-    ``|psi|`` [rad]. ``xe``, ``qe``, ``ve`` and ``monitor`` are scratch arrays."""
-    none3, none33, none4 = np.empty((0, 3)), np.empty((0, 3, 3)), np.empty((0, 4))
-    none18, none9 = np.empty((0, 18)), np.empty((0, 9))
-    gather_element_state(x, quat, v, W, rods.pos_nodes, rods.rot_nodes, rods.offset_q,
-                         rods.offset_R, xe, qe, ve)
-    _state_and_force(rods.rest_length, rods.reference_strain, rods.stiffness, rods.tau, xe, qe,
-                     ve, rods.tension_only, rods.kink, rods.series, rods.beta_angle,
-                     rods.gamma_angle, np.empty((0, 6)), 0.0, force, none3, none33, none3, none4,
-                     none18, none9, monitor)
-    peak, phi = 0.0, 0.0
+    ``|psi|`` [rad]. ``monitor`` (E, 2) is scratch.
+
+    The equations of :func:`_state_and_force` (the reference path; they agree to a few ulp),
+    each element read straight from the node arrays and its rotation algebra without
+    trigonometry: with ``r = conj(q1) q2 = (c, s n)`` scaled to ``|r| = 1``, ``c = cos(phi/2)``,
+    ``s = sin(phi/2)``, the half rotation ``exp_q(psi/2) = (cos(phi/4), sin(phi/4) n)`` follows
+    from the half-angle formulas, ``t = tan(phi/4) = s / (1 + c)`` gives ``beta = t / (2 phi)``,
+    ``cot(phi/2) = c / s`` gives ``gamma``, and the angle is ``phi = 4 atan(t)`` by its Taylor
+    series below 0.5 rad (``atan2`` above).
+    """
+    pos, rot, oq, oR = rods.pos_nodes, rods.rot_nodes, rods.offset_q, rods.offset_R
+    series, stiffness, tau = rods.series, rods.stiffness, rods.tau
+    rest_length, reference_strain = rods.rest_length, rods.reference_strain
+    tension_only, kink = rods.tension_only, rods.kink
+    beta_angle, gamma_angle = rods.beta_angle, rods.gamma_angle  # no named tuple in a parallel loop
+    for e in numba.prange(rest_length.shape[0]):  # elements are independent: split over threads
+        i1, i2 = pos[e, 0], pos[e, 1]
+        (w1, x1, y1, z1), (a0, a1, a2) = _end_state(quat, W, oq, oR, e, 0, rot[e, 0])
+        (w2, x2, y2, z2), (b0, b1, b2) = _end_state(quat, W, oq, oR, e, 1, rot[e, 1])
+        # psi = log(conj(q1) q2) on the double cover (as _kinematics)
+        rw, rx, ry, rz = _quat_product(w1, -x1, -y1, -z1, w2, x2, y2, z2)
+        ss = rx * rx + ry * ry + rz * rz
+        s = np.sqrt(ss)
+        # half-angle formulas: 2 |r| cos^2(phi/4) = |r| + rw, tan(phi/4) = s / (|r| + rw)
+        norm = np.sqrt(rw * rw + ss)
+        if rw >= 0.0:
+            twice_cos2 = norm + rw
+            inv_tc = 1.0 / twice_cos2
+            t = s * inv_tc
+        else:
+            twice_cos2 = ss / (norm - rw)
+            inv_tc = 1.0 / twice_cos2
+            t = (norm - rw) / s
+        t2 = t * t
+        if t2 < _ATAN_SERIES_T2:  # phi = 4 atan(t) = 4 t a(t^2), phi / s = 4 a(t^2) / twice_cos2
+            factor = 4.0 * _atan_series(t2) * inv_tc
+        else:
+            factor = 2.0 * np.arctan2(s, rw) / s
+        p0, p1, p2 = factor * rx, factor * ry, factor * rz
+        phi = np.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
+        hw = np.sqrt(0.5 * twice_cos2 / norm)
+        hs = hw * inv_tc    # = 1 / (2 |r| hw)
+        hx, hy, hz = hs * rx, hs * ry, hs * rz
+        if phi < beta_angle:
+            beta = _series8(series, 0, phi * phi)
+        else:
+            beta = t / (2.0 * phi)
+        if phi < gamma_angle:
+            gamma = _series8(series, 2, phi * phi)
+        else:
+            inv_p = 1.0 / phi
+            gamma = inv_p * (inv_p - 0.5 * rw / s)
+        # R_m = R(q1 exp_q(psi/2)), g = R_m^T (x2 - x1)
+        w, u, y, z = _quat_product(w1, x1, y1, z1, hw, hx, hy, hz)
+        R = (1.0 - 2.0 * (y * y + z * z), 2.0 * (u * y - w * z), 2.0 * (u * z + w * y),
+             2.0 * (u * y + w * z), 1.0 - 2.0 * (u * u + z * z), 2.0 * (y * z - w * u),
+             2.0 * (u * z - w * y), 2.0 * (y * z + w * u), 1.0 - 2.0 * (u * u + y * y))
+        d0, d1, d2 = x[i2, 0] - x[i1, 0], x[i2, 1] - x[i1, 1], x[i2, 2] - x[i1, 2]
+        g0 = R[0] * d0 + R[3] * d1 + R[6] * d2
+        g1 = R[1] * d0 + R[4] * d1 + R[7] * d2
+        g2 = R[2] * d0 + R[5] * d1 + R[8] * d2
+        inv_le = 1.0 / rest_length[e]
+        eps = (g0 * inv_le - reference_strain[e, 0], g1 * inv_le - reference_strain[e, 1],
+               g2 * inv_le - reference_strain[e, 2], p0 * inv_le - reference_strain[e, 3],
+               p1 * inv_le - reference_strain[e, 4], p2 * inv_le - reference_strain[e, 5])
+        # strain rates (as _strains_and_rates)
+        vd0, vd1, vd2 = v[i2, 0] - v[i1, 0], v[i2, 1] - v[i1, 1], v[i2, 2] - v[i1, 2]
+        w0, w1_, w2_ = b0 - a0, b1 - a1, b2 - a2
+        c0, c1, c2 = _cross(p0, p1, p2, w0, w1_, w2_)
+        s0, s1, s2 = _cross(g0, g1, g2, 0.5 * (a0 + b0) + beta * c0, 0.5 * (a1 + b1) + beta * c1,
+                            0.5 * (a2 + b2) + beta * c2)
+        cc0, cc1, cc2 = _cross(p0, p1, p2, c0, c1, c2)
+        k0, k1, k2 = _cross(p0, p1, p2, a0, a1, a2)
+        rate = ((R[0] * vd0 + R[3] * vd1 + R[6] * vd2 + s0) * inv_le,
+                (R[1] * vd0 + R[4] * vd1 + R[7] * vd2 + s1) * inv_le,
+                (R[2] * vd0 + R[5] * vd1 + R[8] * vd2 + s2) * inv_le,
+                (w0 + 0.5 * c0 + gamma * cc0 + k0) * inv_le,
+                (w1_ + 0.5 * c1 + gamma * cc1 + k1) * inv_le,
+                (w2_ + 0.5 * c2 + gamma * cc2 + k2) * inv_le)
+        (N0, N1, N2, M0, M1, M2), _, _ = _resultants(
+            stiffness, tau, rest_length, e, eps, rate, (p0, p1, p2), phi, tension_only, kink)
+        # the internal force (as _state_and_force)
+        h0, h1, h2 = _cross(N0, N1, N2, g0, g1, g2)
+        ph0, ph1, ph2 = _cross(p0, p1, p2, h0, h1, h2)
+        pm0, pm1, pm2 = _cross(p0, p1, p2, M0, M1, M2)
+        ppm0, ppm1, ppm2 = _cross(p0, p1, p2, pm0, pm1, pm2)
+        AM0 = M0 + 0.5 * pm0 + gamma * ppm0
+        AM1 = M1 + 0.5 * pm1 + gamma * ppm1
+        AM2 = M2 + 0.5 * pm2 + gamma * ppm2
+        fd0 = R[0] * N0 + R[1] * N1 + R[2] * N2
+        fd1 = R[3] * N0 + R[4] * N1 + R[5] * N2
+        fd2 = R[6] * N0 + R[7] * N1 + R[8] * N2
+        force[e, 0], force[e, 1], force[e, 2] = -fd0, -fd1, -fd2
+        force[e, 6], force[e, 7], force[e, 8] = fd0, fd1, fd2
+        force[e, 3] = 0.5 * h0 + beta * ph0 - AM0
+        force[e, 4] = 0.5 * h1 + beta * ph1 - AM1
+        force[e, 5] = 0.5 * h2 + beta * ph2 - AM2
+        force[e, 9] = 0.5 * h0 - beta * ph0 + (AM0 - pm0)
+        force[e, 10] = 0.5 * h1 - beta * ph1 + (AM1 - pm1)
+        force[e, 11] = 0.5 * h2 - beta * ph2 + (AM2 - pm2)
+        # the axial force along the chord: a reversed element's (C51) pulls
+        monitor[e, 0] = -N0 if tension_only and N0 < 0.0 else N0
+        monitor[e, 1] = phi
+    peak, phi_max = 0.0, 0.0
     for e in range(monitor.shape[0]):
         peak = max(peak, monitor[e, 0])
-        phi = max(phi, monitor[e, 1])
-    return peak, phi
+        phi_max = max(phi_max, monitor[e, 1])
+    return peak, phi_max
 
 
 @numba.njit(cache=True)

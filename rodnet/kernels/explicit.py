@@ -121,14 +121,11 @@ class StepControl(NamedTuple):
 
 class Scratch(NamedTuple):
     """Work arrays, allocated once per run: ``f_node`` (N, 3), ``m_node`` (R, 3), the rod
-    elements' ``xe`` (E, 2, 3), ``qe`` (E, 2, 4), ``ve``, ``force`` (E, 12), ``monitor`` (E, 2),
+    elements' ``force`` (E, 12) and ``monitor`` (E, 2),
     the bodies' ``body_work`` (9, 3) and the contact's :class:`ContactScratch`."""
 
     f_node: np.ndarray
     m_node: np.ndarray
-    xe: np.ndarray
-    qe: np.ndarray
-    ve: np.ndarray
     force: np.ndarray
     monitor: np.ndarray
     body_work: np.ndarray
@@ -210,7 +207,7 @@ def _forces(t, x, quat, v, W, p, s):  # pragma: no cover - compiled
         hinge_forces(x, v, f_node, h.nodes, h.stiffness, h.tau, h.rest)
     rods = p.rods
     if rods.rest_length.shape[0] > 0:
-        rod_peak, phi = rod_forces(x, quat, v, W, rods, s.xe, s.qe, s.ve, s.force, s.monitor)
+        rod_peak, phi = rod_forces(x, quat, v, W, rods, s.force, s.monitor)
         peak = max(peak, rod_peak)
         scatter_forces(s.force, rods.pos_nodes, rods.rot_nodes, rods.offset_R, f_node, m_node)
     return peak, phi
@@ -254,7 +251,8 @@ def _update(x, quat, v, W, f_node, m_node, nodes, rotations, h):  # pragma: no c
         qz = aw * bz + ax * by - ay * bx + az * bw
         norm = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
         if math.isfinite(norm) and norm > 0.0:
-            quat[r, 0], quat[r, 1], quat[r, 2], quat[r, 3] = qw / norm, qx / norm, qy / norm, qz / norm
+            inv = 1.0 / norm
+            quat[r, 0], quat[r, 1], quat[r, 2], quat[r, 3] = qw * inv, qx * inv, qy * inv, qz * inv
         else:
             bad += 1
     return bad == 0
