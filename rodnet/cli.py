@@ -1,5 +1,6 @@
 """The ``rodnet`` command: ``run`` a scene file, ``demo`` the reference deployment, ``validate``
-the validation cases, ``bench`` the work-precision study of the reference deployment."""
+the validation cases, ``bench`` the work-precision study of the reference deployment, ``render``
+the movie of a run."""
 
 from __future__ import annotations
 
@@ -41,6 +42,17 @@ def _parser() -> argparse.ArgumentParser:
                      help="only the models whose name contains TEXT (plus the references)")
     ben.add_argument("--limit", type=float, default=3600.0, metavar="SECONDS",
                      help="interrupt a run after this many wall seconds (default 3600)")
+    ren = sub.add_parser("render", help="write the movie of a run's saved frames "
+                         "(OUTDIR/deployment.mp4)")
+    ren.add_argument("outdir", type=Path, metavar="OUTDIR", help="the output folder of a run")
+    ren.add_argument("-o", "--output", type=Path, default=None, metavar="FILE",
+                     help="the movie file, .mp4 or .gif (default: OUTDIR/deployment.mp4, with "
+                     "--gif OUTDIR/deployment.gif)")
+    ren.add_argument("--gif", action="store_true", help="write a GIF instead of an MP4")
+    ren.add_argument("--fps", type=_positive_float, default=None, help="frames per second "
+                     "(default: the saved frames in about 10 s, between 5 and 30 per second)")
+    ren.add_argument("--size", type=_size, default=None, metavar="WxH",
+                     help="frame size in pixels, even numbers (default 800x600)")
     for p in (run, demo):
         p.add_argument("-o", "--output", type=Path, default=None,
                        help="output directory (default: the scene's output.directory)")
@@ -62,6 +74,27 @@ def _positive_int(text: str) -> int:
     if value < 1:
         raise argparse.ArgumentTypeError(f"must be an integer >= 1, not {text!r}")
     return value
+
+
+def _positive_float(text: str) -> float:
+    """A finite number > 0 (an argparse type)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = 0.0
+    if not 0.0 < value < float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a number > 0, not {text!r}")
+    return value
+
+
+def _size(text: str) -> tuple[int, int]:
+    """``WxH`` in pixels (an argparse type; see :func:`rodnet.viz.movie.parse_size`)."""
+    from rodnet.viz.movie import parse_size
+
+    try:
+        return parse_size(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 demo_scene_text = reference_scene_text
@@ -91,6 +124,8 @@ def main(argv: list[str] | None = None) -> int:
 
         print(bench(args.output, args.quick, args.only, args.limit))
         return 0
+    if args.command == "render":
+        return _render(args)
     from rodnet.errors import SceneError
     from rodnet.scene import load_scene, scene_from_toml
 
@@ -107,10 +142,13 @@ def main(argv: list[str] | None = None) -> int:
         print(f"rodnet: bad input: {exc}. Nothing was run and no output was written.", file=sys.stderr)
         return EXIT_BAD_INPUT
     warnings = list(result.summary.get("warnings", []))
-    if result.status == "ok" and (scene.output.picture or scene.output.plot) and "mouth_area" in result.arrays:
+    movie = args.command == "demo"
+    if result.status == "ok" and (scene.output.picture or scene.output.plot or movie) \
+            and "mouth_area" in result.arrays:
         from rodnet.viz.figures import render_in_subprocess
 
-        warnings += render_in_subprocess(result.directory, scene.output.picture, scene.output.plot)
+        warnings += render_in_subprocess(result.directory, scene.output.picture, scene.output.plot,
+                                         movie)
     for w in warnings:
         print(f"rodnet: warning: {w}", file=sys.stderr)
     _report(result)
@@ -118,6 +156,27 @@ def main(argv: list[str] | None = None) -> int:
         if result.status == "interrupted":
             return 128 + int(getattr(signal, str(result.summary.get("signal", "SIGINT"))))
         return EXIT_FAILED
+    return 0
+
+
+def _render(args: argparse.Namespace) -> int:
+    """``rodnet render``: check the folder and the options, then write the movie."""
+    from rodnet.errors import SceneError
+    from rodnet.viz.movie import DEFAULT_SIZE, movie_target, render_movie
+
+    try:
+        path, gif = movie_target(args.outdir, args.output, args.gif, args.fps)
+    except SceneError as exc:
+        print(f"rodnet render: bad input: {exc}. No movie was written.", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    try:
+        render_movie(args.outdir, path, args.fps, args.size or DEFAULT_SIZE, gif)
+    except Exception as exc:  # no OpenGL, no ffmpeg: say so without a traceback
+        print(f"rodnet render: could not write {path}: {type(exc).__name__}: {exc}. Off-screen "
+              "rendering needs libegl1 and libgl1-mesa-dri, the MP4 the ffmpeg of "
+              "imageio-ffmpeg (pip install -e '.[viz]').", file=sys.stderr)
+        return EXIT_FAILED
+    print(f"rodnet render: wrote {path}")
     return 0
 
 
