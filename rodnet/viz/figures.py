@@ -290,7 +290,7 @@ def frame_label(summary: dict[str, Any], time: float) -> str:
 
 def corner_nodes(summary: dict[str, Any]) -> list[int]:
     """The node indices of a net's four corner masses (none for rods)."""
-    nodes = summary["nodes"]
+    nodes = summary.get("nodes", {})
     return [nodes[f"net:corner:{k}"] for k in range(4)] if "net:corner:0" in nodes else []
 
 

@@ -108,6 +108,10 @@ def check_results(directory: Path) -> None:
             frames = len(data["time"]) if "time" in data.files else 0
     except (OSError, ValueError) as exc:
         raise SceneError("OUTDIR", str(directory), f"result.npz cannot be read ({exc})") from None
+    try:
+        json.loads((directory / "summary.json").read_text())
+    except (OSError, ValueError) as exc:
+        raise SceneError("OUTDIR", str(directory), f"summary.json cannot be read ({exc})") from None
     if lacking:
         raise SceneError("OUTDIR", str(directory), "result.npz lacks the arrays "
                          f"{', '.join(lacking)}: it is not a result of this version's runs")
@@ -141,7 +145,7 @@ class BodyMotion:
         if "body_positions" not in data:
             return
         bodies, self.missing = bodies_at_frame(directory, data, summary, 0)
-        order = [spec["name"] for spec in summary["scene"]["bodies"]]
+        order = [spec["name"] for spec in summary.get("scene", {}).get("bodies", [])]
         self._centres = np.asarray(data["body_positions"], float)                # (F, B, 3)
         self._rotations = quat_to_matrix(np.asarray(data["body_rotations"], float))  # (F, B, 3, 3)
         for body in bodies:
@@ -167,24 +171,23 @@ def run_bounds(positions: FloatArray, bodies: BodyMotion) -> FloatArray:
     return np.column_stack([low, high]).ravel()
 
 
-LONG_AXIS_RATIO = 1.5
-"""A box this many times longer along one axis than along any other is laid across the frame."""
+TALL_BOX_RATIO = 1.5
+"""A box this many times longer along z than along x and y is laid across the frame."""
 
 
-def lay_long_axis_across(plotter: Any, bounds: FloatArray, motion: FloatArray) -> None:
-    """Roll the camera about its view direction so that the longest axis of the box ``bounds``
-    (6,) [m] runs across the (wide) frame when it is :data:`LONG_AXIS_RATIO` times longer than
-    the others (a net's flight: tens of metres along the throw, a few across), pointing to the
-    right where ``motion`` (3,) [m] (the run's displacement) has a positive component along it,
-    and fit the camera to the box again. The view direction stays that of
-    :func:`rodnet.viz.figures.add_scale_and_view`."""
+def lay_tall_box_across(plotter: Any, bounds: FloatArray, motion: FloatArray) -> None:
+    """Roll the camera about its view direction so that z, the isometric view's up, runs across
+    the (wide) frame when the box ``bounds`` (6,) [m] is :data:`TALL_BOX_RATIO` times longer
+    along z than along x and y (a net thrown along z: tens of metres along the throw, a few
+    across), pointing to the right where ``motion`` (3,) [m] (the run's displacement) has a
+    positive z, and fit the camera to the box again. The view direction stays that of
+    :func:`rodnet.viz.figures.add_scale_and_view`; any other box keeps z up."""
     extents = np.ptp(np.asarray(bounds, float).reshape(3, 2), axis=1)
-    order = np.argsort(extents)
-    if extents[order[2]] < LONG_AXIS_RATIO * extents[order[1]]:
+    if extents[2] < TALL_BOX_RATIO * extents[:2].max():
         return
     camera = plotter.camera
     towards = np.subtract(camera.position, camera.focal_point)      # from the scene to the eye
-    along = np.eye(3)[order[2]] * (1.0 if motion[order[2]] >= 0.0 else -1.0)
+    along = np.array([0.0, 0.0, 1.0 if motion[2] >= 0.0 else -1.0])
     up = np.cross(towards, along)      # normal to the long axis and the view: along is "right"
     camera.up = tuple(up / np.linalg.norm(up))
     plotter.reset_camera(bounds=list(bounds))
@@ -264,7 +267,7 @@ class _MovieScene:
         # no labelled box: measured, its labels cost a third of the time of a frame
         add_scale_and_view(self.plotter, bounds, labelled_box=False)
         positions = data["positions"]
-        lay_long_axis_across(self.plotter, bounds, np.nanmean(positions[-1] - positions[0], axis=0))
+        lay_tall_box_across(self.plotter, bounds, np.nanmean(positions[-1] - positions[0], axis=0))
 
     def caption(self, frame: int) -> str:
         """The frame's time and, with bodies, its contact force."""
