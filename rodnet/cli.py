@@ -53,6 +53,8 @@ def _parser() -> argparse.ArgumentParser:
                      "(default: the saved frames in about 10 s, between 5 and 30 per second)")
     ren.add_argument("--size", type=_size, default=None, metavar="WxH",
                      help="frame size in pixels, even numbers (default 800x600)")
+    ren.add_argument("--every", type=_positive_int, default=1, metavar="N",
+                     help="draw every N-th saved frame, and the last (default 1: all)")
     for p in (run, demo):
         p.add_argument("-o", "--output", type=Path, default=None,
                        help="output directory (default: the scene's output.directory)")
@@ -170,7 +172,7 @@ def _render(args: argparse.Namespace) -> int:
         print(f"rodnet render: bad input: {exc}. No movie was written.", file=sys.stderr)
         return EXIT_BAD_INPUT
     try:
-        render_movie(args.outdir, path, args.fps, args.size or DEFAULT_SIZE, gif)
+        render_movie(args.outdir, path, args.fps, args.size or DEFAULT_SIZE, gif, args.every)
     except Exception as exc:  # no OpenGL, no ffmpeg: say so without a traceback
         print(f"rodnet render: could not write {path}: {type(exc).__name__}: {exc}. Off-screen "
               "rendering needs libegl1 and libgl1-mesa-dri, the MP4 the ffmpeg of "

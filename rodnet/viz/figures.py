@@ -47,8 +47,9 @@ def render_in_subprocess(directory: Path, picture: bool, plot: bool, movie: bool
         finished = {line[5:] for line in out.splitlines() if line.startswith("done ")}
         if set(tasks) <= finished:
             return []
+        files = {"picture": "net.png", "plot": "deployment.png", "movie": "deployment.mp4"}
         return [f"rendering timed out after {timeout_s:.0f} s; the results are complete without "
-                f"{', '.join(t for t in tasks if t not in finished)}"]
+                f"{', '.join(files[t] for t in tasks if t not in finished)}"]
     finished = {line[5:] for line in done.stdout.splitlines() if line.startswith("done ")}
     errors = done.stderr.strip().splitlines()
 

@@ -15,11 +15,12 @@ from pathlib import Path
 from typing import Callable
 
 from rodnet.viz.figures import picture_at_max_area, plot_deployment
-from rodnet.viz.movie import render_movie
+from rodnet.viz.movie import movie_after_run
 
 TASKS: dict[str, Callable[[Path], Path]] = {
-    "picture": picture_at_max_area, "plot": plot_deployment, "movie": render_movie}
-"""What each task writes: ``net.png``, ``deployment.png``, ``deployment.mp4``."""
+    "picture": picture_at_max_area, "plot": plot_deployment, "movie": movie_after_run}
+"""What each task writes: ``net.png``, ``deployment.png``, ``deployment.mp4`` (of every second
+saved frame)."""
 
 
 def main(argv: list[str]) -> int:

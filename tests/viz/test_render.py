@@ -91,12 +91,18 @@ def test_threads_take_the_colour_of_their_tension(net_run: Path, net_movie: np.n
     assert upper[taut].sum() >= 10
 
 
-def test_the_gif_has_every_saved_frame_at_the_rate_asked(net_run: Path) -> None:
-    done = _render(net_run, "--gif", "--fps", "10")
+def _every(saved: int, n: int) -> int:
+    """Frames of a movie of every n-th of ``saved`` frames, the last one included."""
+    return len(range(0, saved, n)) + (1 if (saved - 1) % n else 0)
+
+
+def test_the_gif_has_every_third_frame_at_the_rate_asked(net_run: Path) -> None:
+    done = _render(net_run, "--gif", "--fps", "10", "--every", "3")
     assert done.returncode == 0, done.stderr
     gif = net_run / "deployment.gif"
     frames = _frames(gif)
-    assert frames.shape == (len(np.load(net_run / "result.npz")["time"]), SIZE[1], SIZE[0], 3)
+    saved = len(np.load(net_run / "result.npz")["time"])
+    assert frames.shape == (_every(saved, 3), SIZE[1], SIZE[0], 3)
     assert iio.immeta(gif, index=0)["duration"] == 100            # ms: 10 frames a second
     assert np.abs(frames[0] - frames[-1]).mean() > 1.0
 
@@ -151,8 +157,9 @@ def test_the_demo_writes_the_movie_and_a_missing_encoder_is_a_warning(
     status = main(["demo", "-o", str(out), "--quiet", "--set", "simulation.duration=0.05",
                    "--set", "output.picture=false", "--set", "output.plot=false"])
     assert status == 0, capsys.readouterr().err
-    frames = _frames(out / "deployment.mp4")
-    assert len(frames) == len(np.load(out / "result.npz")["time"])
+    frames = _frames(out / "deployment.mp4")                   # every second saved frame
+    assert len(frames) == _every(len(np.load(out / "result.npz")["time"]), 2)
+    assert frames.shape[1:] == (600, 800, 3)
     # without ffmpeg the movie is a warning, and a movie already there is kept
     before = (out / "deployment.mp4").read_bytes()
     monkeypatch.setenv("IMAGEIO_FFMPEG_EXE", str(tmp_path / "no-ffmpeg"))
