@@ -50,7 +50,7 @@ def _parser() -> argparse.ArgumentParser:
                      "--gif OUTDIR/deployment.gif)")
     ren.add_argument("--gif", action="store_true", help="write a GIF instead of an MP4")
     ren.add_argument("--fps", type=_positive_float, default=None, help="frames per second "
-                     "(default: the saved frames in about 10 s, between 5 and 30 per second)")
+                     "(default: the movie's frames in about 10 s, between 5 and 30 per second)")
     ren.add_argument("--size", type=_size, default=None, metavar="WxH",
                      help="frame size in pixels, even numbers (default 800x600)")
     ren.add_argument("--every", type=_positive_int, default=1, metavar="N",

@@ -260,11 +260,10 @@ class _MovieScene:
     def __init__(self, directory: Path, data: Any, summary: dict[str, Any],
                  size: tuple[int, int]) -> None:
         import pyvista as pv
+        from vtkmodules.vtkCommonCore import vtkUnsignedCharArray
 
         self.data, self.summary = data, summary
         self.bodies = BodyMotion(directory, data, summary)
-        from vtkmodules.vtkCommonCore import vtkUnsignedCharArray
-
         self.plotter = pv.Plotter(off_screen=True, window_size=size)
         self._pixels = vtkUnsignedCharArray()
         # no multisampling: measured, it doubles the time of a frame with software OpenGL
@@ -329,8 +328,8 @@ class _MovieScene:
 
 PRESET = "veryfast"
 """x264's speed preset of the MP4: on the reference deployment's 301 frames at 800 x 600 the
-encoder took 3.3 s of CPU against 4.6 s at the default ``"medium"``, for files of 0.40 MB
-either way."""
+encoder took 2.4 - 3.1 s of CPU against 3.4 - 3.5 s at the default ``"medium"`` (two runs each
+on a shared machine), for files of 0.96 and 0.93 MB."""
 
 
 class _Mp4Writer:
@@ -340,7 +339,7 @@ class _Mp4Writer:
         import imageio.v2 as imageio
 
         # macro_block_size 1: keep the size asked for (even sizes are all yuv420p needs);
-        # quality 7 (x264's crf 15): the one-pixel threads stay sharp
+        # quality 7 of 10 is x264's crf 15
         self._writer = imageio.get_writer(path, format="FFMPEG", mode="I", fps=fps,
                                           codec="libx264", pixelformat="yuv420p", quality=7,
                                           macro_block_size=1, ffmpeg_log_level="error",
