@@ -4,6 +4,7 @@ where off-screen rendering does not work)."""
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -14,7 +15,8 @@ import pytest
 
 import rodnet
 from rodnet.cli import EXIT_BAD_INPUT, main
-from rodnet.viz.figures import render_in_subprocess
+from rodnet.viz.figures import bodies_at_frame, render_in_subprocess
+from rodnet.viz.movie import BodyMotion
 from tests.conftest import small_net_toml
 from tests.viz.rendering import SPHERE_TARGET, require_offscreen
 
@@ -125,6 +127,24 @@ def test_a_body_is_drawn(tmp_path: Path, net_run: Path, net_movie: np.ndarray) -
 
     # the sphere covers a disc of many pixels in every frame; the net alone has next to none
     assert grey(frames).min() >= 50 and grey(net_movie).max() < 20
+
+
+def test_a_tumbling_body_is_moved_rigidly_from_its_first_frame(tmp_path: Path) -> None:
+    tumbling = SPHERE_TARGET.replace('shape = "sphere"', 'shape = "box"').replace(
+        "size = [1.0, 1.0, 1.0]", "size = [1.0, 0.6, 0.3]").replace(
+        "fixed = true", "mass = 10.0\nvelocity = [0.5, 0.0, 0.0]\n"
+        "angular_velocity_deg = [90.0, 200.0, -45.0]")
+    result = rodnet.run(rodnet.scene_from_toml(small_net_toml(duration=0.3) + tumbling),
+                        tmp_path, progress=False)
+    assert result.status == "ok", result.message
+    data = dict(np.load(tmp_path / "result.npz"))
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    motion = BodyMotion(tmp_path, data, summary)
+    last = len(data["time"]) - 1
+    rebuilt, _ = bodies_at_frame(tmp_path, data, summary, last)     # from the shape itself
+    moved = motion.vertices(last)[0]
+    assert np.ptp(moved - motion.vertices(0)[0], axis=0).max() > 0.1   # it turned and moved
+    np.testing.assert_allclose(moved, rebuilt[0].vertices, atol=1e-9)
 
 
 def test_a_folder_without_results_is_refused(tmp_path: Path,
