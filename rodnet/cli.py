@@ -1,5 +1,6 @@
 """The ``rodnet`` command: ``run`` a scene file, ``demo`` the reference deployment, ``validate``
-the validation cases, ``bench`` the work-precision study of the reference deployment."""
+the validation cases, ``bench`` the work-precision study of the reference deployment, ``render``
+the movie of a run."""
 
 from __future__ import annotations
 
@@ -72,6 +73,19 @@ def _parser() -> argparse.ArgumentParser:
     swp.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                      help="override a scene key in every run, as rodnet run --set (repeatable)")
     swp.add_argument("--quiet", action="store_true", help="no progress bar or progress lines")
+    ren = sub.add_parser("render", help="write the movie of a run's saved frames "
+                         "(OUTDIR/deployment.mp4)")
+    ren.add_argument("outdir", type=Path, metavar="OUTDIR", help="the output folder of a run")
+    ren.add_argument("-o", "--output", type=Path, default=None, metavar="FILE",
+                     help="the movie file, .mp4 or .gif (default: OUTDIR/deployment.mp4, with "
+                     "--gif OUTDIR/deployment.gif)")
+    ren.add_argument("--gif", action="store_true", help="write a GIF instead of an MP4")
+    ren.add_argument("--fps", type=_positive_float, default=None, help="frames per second "
+                     "(default: the movie's frames in about 10 s, between 5 and 30 per second)")
+    ren.add_argument("--size", type=_size, default=None, metavar="WxH",
+                     help="frame size in pixels, even numbers (default 800x600)")
+    ren.add_argument("--every", type=_positive_int, default=1, metavar="N",
+                     help="draw every N-th saved frame, and the last (default 1: all)")
     for p in (run, demo):
         p.add_argument("-o", "--output", type=Path, default=None,
                        help="output directory (default: the scene's output.directory)")
@@ -95,6 +109,27 @@ def _positive_int(text: str) -> int:
     return value
 
 
+def _positive_float(text: str) -> float:
+    """A finite number > 0 (an argparse type)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = 0.0
+    if not 0.0 < value < float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a number > 0, not {text!r}")
+    return value
+
+
+def _size(text: str) -> tuple[int, int]:
+    """``WxH`` in pixels (an argparse type; see :func:`rodnet.viz.movie.parse_size`)."""
+    from rodnet.viz.movie import parse_size
+
+    try:
+        return parse_size(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 demo_scene_text = reference_scene_text
 
 
@@ -111,6 +146,8 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.command == "sweep":
         return _sweep(args)
+    if args.command == "render":
+        return _render(args)
     from rodnet.errors import SceneError
     from rodnet.scene import load_scene, scene_from_toml
 
@@ -128,7 +165,8 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_BAD_INPUT
     from rodnet.viz.figures import draw_run_figures
 
-    warnings = list(result.summary.get("warnings", [])) + draw_run_figures(result, scene.output)
+    warnings = list(result.summary.get("warnings", [])) + draw_run_figures(
+        result, scene.output, movie=args.command == "demo")
     for w in warnings:
         print(f"rodnet: warning: {w}", file=sys.stderr)
     _report(result)
@@ -170,6 +208,30 @@ def _validate(cases: Path, output: Path, quick: bool, report_dir: Path | None
     ``output/validation.md``. Returns the exit status (0 when all checks pass), the verdict (how
     many checks passed, where the report is) and, with ``report_dir``, the report's builder with
     every case added, to be written once the slow tests have run."""
+
+
+def _render(args: argparse.Namespace) -> int:
+    """``rodnet render``: check the folder and the options, then write the movie."""
+    from rodnet.errors import SceneError
+    from rodnet.viz.movie import DEFAULT_SIZE, movie_target, render_movie
+
+    try:
+        path, gif = movie_target(args.outdir, args.output, args.gif, args.fps)
+    except SceneError as exc:
+        print(f"rodnet render: bad input: {exc}. No movie was written.", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    try:
+        render_movie(args.outdir, path, args.fps, args.size or DEFAULT_SIZE, gif, args.every)
+    except Exception as exc:  # no OpenGL, no ffmpeg: say so without a traceback
+        print(f"rodnet render: could not write {path}: {type(exc).__name__}: {exc}. Off-screen "
+              "rendering needs libegl1 and libgl1-mesa-dri, the MP4 the ffmpeg of "
+              "imageio-ffmpeg (pip install -e '.[viz]').", file=sys.stderr)
+        return EXIT_FAILED
+    print(f"rodnet render: wrote {path}")
+    return 0
+
+
+
     import tempfile
 
     from rodnet.errors import SceneError

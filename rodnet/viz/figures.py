@@ -1,6 +1,7 @@
 """The net at its maximum mouth area (pyvista, off screen) and the deployment time series
-(matplotlib). Both read a finished output directory; :func:`render_in_subprocess` runs them in a
-child process so that a machine without working OpenGL loses the picture, never the run.
+(matplotlib). Both read a finished output directory; :func:`render_in_subprocess` runs them, and
+the movie of :mod:`rodnet.viz.movie`, in a child process so that a machine without working
+OpenGL loses the picture, never the run.
 
 For a run with rigid bodies the picture also draws the bodies at that frame and marks the
 thread nodes in contact, and the plot gains panels of the contact force, the targets' motion and
@@ -29,32 +30,47 @@ from numpy.typing import NDArray
 FloatArray = NDArray[np.float64]
 
 
-AS_SCRIPT = "import runpy, sys; sys.argv = sys.argv[1:]; runpy.run_path(sys.argv[0], run_name='__main__')"
-"""Runs this file as a script: without importing the rodnet package (numba, scipy and the
-kernels), which ``python -m rodnet.viz.figures`` would do first (2.5 CPU s of the subprocess's
-5 - 8: validation/benchmarks/results/cold_start.md). Scenes with bodies import the body shapes
-from rodnet when drawn."""
-
-
-def render_in_subprocess(directory: Path, picture: bool, plot: bool, timeout_s: float = 300.0) -> list[str]:
-    """Write ``net.png`` and/or ``deployment.png`` in ``directory``; return warnings, if any."""
+def render_in_subprocess(directory: Path, picture: bool, plot: bool, movie: bool = False,
+                         timeout_s: float = 300.0) -> list[str]:
+    """Write ``net.png``, ``deployment.png`` and/or ``deployment.mp4`` (:mod:`rodnet.viz.movie`)
+    in ``directory`` from a child process (:mod:`rodnet.viz.worker`); return warnings, if any:
+    one for the figures, one for the movie, saying why each is missing."""
     env = dict(os.environ)
     env.setdefault("PYVISTA_OFF_SCREEN", "true")
-    args = [sys.executable, "-c", AS_SCRIPT, __file__, str(directory)]
-    args += ["--picture"] if picture else []
-    args += ["--plot"] if plot else []
+    tasks = [name for name, asked in (("picture", picture), ("plot", plot), ("movie", movie))
+             if asked]
+    args = [sys.executable, "-m", "rodnet.viz.worker", str(directory)] + [f"--{t}" for t in tasks]
     try:
         done = subprocess.run(args, env=env, capture_output=True, text=True, timeout=timeout_s)
-    except subprocess.TimeoutExpired:
-        return [f"rendering timed out after {timeout_s:.0f} s; the results are complete without it"]
-    if done.returncode != 0:
-        tail = (done.stderr.strip().splitlines() or [f"exit status {done.returncode}"])[-1]
-        return [f"could not draw the figures ({tail}); the results are complete without them. "
-                "Headless rendering needs libegl1 and libgl1-mesa-dri (see the README)."]
-    return []
+    except subprocess.TimeoutExpired as exc:
+        out = exc.stdout.decode() if isinstance(exc.stdout, bytes) else exc.stdout or ""
+        finished = {line[5:] for line in out.splitlines() if line.startswith("done ")}
+        if set(tasks) <= finished:
+            return []
+        files = {"picture": "net.png", "plot": "deployment.png", "movie": "deployment.mp4"}
+        return [f"rendering timed out after {timeout_s:.0f} s; the results are complete without "
+                f"{', '.join(files[t] for t in tasks if t not in finished)}"]
+    finished = {line[5:] for line in done.stdout.splitlines() if line.startswith("done ")}
+    errors = done.stderr.strip().splitlines()
+
+    def why(task: str) -> str:
+        own = [line for line in errors if line.startswith(f"{task} failed: ")]
+        return own[-1][len(task) + 9:] if own else (errors or [f"exit status {done.returncode}"])[-1]
+
+    warnings = []
+    figures = [t for t in ("picture", "plot") if t in tasks and t not in finished]
+    if figures:
+        warnings.append(f"could not draw the figures ({why(figures[0])}); the results are "
+                        "complete without them. Headless rendering needs libegl1 and "
+                        "libgl1-mesa-dri (see the README).")
+    if "movie" in tasks and "movie" not in finished:
+        warnings.append(f"could not write the movie ({why('movie')}); the results are complete "
+                        "without it. It needs off-screen rendering (libegl1, libgl1-mesa-dri) "
+                        "and the ffmpeg of imageio-ffmpeg (pip install -e '.[viz]').")
+    return warnings
 
 
-def draw_run_figures(result: Any, output: Any) -> list[str]:
+def draw_run_figures(result: Any, output: Any, movie: bool = False) -> list[str]:
     """Draw what ``rodnet run`` draws after a run: for a completed net run whose scene asks for
     them (``output.picture``, ``output.plot``), ``net.png`` and ``deployment.png`` in its
     directory (:func:`render_in_subprocess`).
@@ -65,14 +81,17 @@ def draw_run_figures(result: Any, output: Any) -> list[str]:
         The run.
     output : rodnet.config.OutputSpec
         The scene's ``[output]``.
+    movie : bool
+        Also write ``deployment.mp4`` (``rodnet demo``).
 
     Returns
     -------
     warnings : list of str
         Why a figure could not be drawn, if it could not.
     """
-    if result.status == "ok" and (output.picture or output.plot) and "mouth_area" in result.arrays:
-        return render_in_subprocess(result.directory, output.picture, output.plot)
+    if result.status == "ok" and (output.picture or output.plot or movie) \
+            and "mouth_area" in result.arrays:
+        return render_in_subprocess(result.directory, output.picture, output.plot, movie)
     return []
 
 
@@ -260,6 +279,73 @@ def contact_nodes(points: FloatArray, bodies: list[BodyAtFrame], summary: dict[s
     return touching
 
 
+TENSION = "tension [N]"
+"""Name of the threads' cell scalars in the pictures and the movie (the title of the colour bar)."""
+
+
+def thread_mesh(data: Any, frame: int) -> Any:
+    """The threads at ``frame`` as a pyvista ``PolyData``: the nodes (N, 3) [m] as points, the
+    ``segments`` of ``result.npz`` as lines, and cell scalars :data:`TENSION` (E,) [N]."""
+    import pyvista as pv
+
+    segments = data["segments"]
+    lines = np.column_stack([np.full(len(segments), 2), segments]).ravel()
+    mesh = pv.PolyData(np.array(data["positions"][frame], float), lines=lines)
+    mesh.cell_data[TENSION] = data["tension"][frame]
+    return mesh
+
+
+def add_threads(plotter: Any, mesh: Any, clim: tuple[float, float] | None = None) -> None:
+    """Draw the threads of :func:`thread_mesh` coloured by tension (viridis) with a vertical
+    colour bar at the right; ``clim`` (low, high) [N] fixes the colour range (default: the
+    mesh's range)."""
+    plotter.add_mesh(mesh, scalars=TENSION, cmap="viridis", line_width=2, clim=clim,
+                     scalar_bar_args=dict(title=TENSION, vertical=True, position_x=0.88,
+                                          position_y=0.25, width=0.05, height=0.5,
+                                          title_font_size=16, label_font_size=14, n_labels=5,
+                                          fmt="%.3g"))
+
+
+def frame_label(summary: dict[str, Any], time: float) -> str:
+    """The caption of a frame: ``t = 1.23 s``, or for a static run, whose frame times are load
+    factors, ``load factor 0.50``."""
+    if summary.get("scene", {}).get("simulation", {}).get("type") == "static":
+        return f"load factor {time:.2f}"
+    return f"t = {time:.2f} s"
+
+
+def corner_nodes(summary: dict[str, Any]) -> list[int]:
+    """The node indices of a net's four corner masses (none for rods)."""
+    nodes = summary.get("nodes", {})
+    return [nodes[f"net:corner:{k}"] for k in range(4)] if "net:corner:0" in nodes else []
+
+
+def body_surface(vertices: FloatArray, faces: NDArray[np.int64]) -> Any:
+    """A body's triangles, ``vertices`` (V, 3) [m] and ``faces`` (T, 3), as pyvista
+    ``PolyData``."""
+    import pyvista as pv
+
+    return pv.PolyData(np.array(vertices, float),
+                       np.column_stack([np.full(len(faces), 3), faces]).ravel())
+
+
+def add_scale_and_view(plotter: Any, bounds: Any = None, labelled_box: bool = True) -> None:
+    """Labelled axes of the box ``bounds`` (6,) [m] (default: everything drawn; left out when
+    not ``labelled_box``), an axes triad, and an isometric camera on that box, zoomed out to
+    leave the right margin to the colour bar."""
+    box = np.asarray(plotter.bounds if bounds is None else bounds, float)
+    extent = float(np.ptp(box.reshape(3, 2), axis=1).max())
+    decimals = int(np.clip(2 - np.floor(np.log10(extent)), 0, 6)) if extent > 0 else 3
+    if labelled_box:
+        plotter.show_bounds(bounds=list(box), xtitle="x [m]", ytitle="y [m]", ztitle="z [m]",
+                            grid=False, location="outer", ticks="outside", font_size=10,
+                            fmt=f"%.{decimals}f", n_xlabels=3, n_ylabels=3, n_zlabels=3)
+    plotter.add_axes(line_width=3, labels_off=False)
+    plotter.view_isometric(bounds=list(box))
+    plotter.camera_set = True   # else the camera getter fits the view to the actors again
+    plotter.camera.zoom(0.85)
+
+
 def picture_at_max_area(directory: Path) -> Path:
     """The net at maximum mouth area, threads coloured by tension, ``net.png``; with bodies,
     their surfaces (grey) at that frame and the nodes in contact (magenta, :func:`contact_nodes`;
@@ -270,33 +356,18 @@ def picture_at_max_area(directory: Path) -> Path:
     data = dict(np.load(directory / "result.npz"))
     summary = json.loads((directory / "summary.json").read_text())
     frame = int(np.argmax(data["mouth_area"])) if "mouth_area" in data else len(data["time"]) - 1
-    segments = data["segments"]
     points = data["positions"][frame]
-    lines = np.column_stack([np.full(len(segments), 2), segments]).ravel()
-    mesh = pv.PolyData(points, lines=lines)
-    mesh.cell_data["tension [N]"] = data["tension"][frame]
     plotter = pv.Plotter(off_screen=True, window_size=(1000, 800))
-    plotter.add_mesh(mesh, scalars="tension [N]", cmap="viridis", line_width=2,
-                     scalar_bar_args=dict(title="tension [N]", vertical=True, position_x=0.88,
-                                          position_y=0.25, width=0.05, height=0.5,
-                                          title_font_size=16, label_font_size=14, n_labels=5,
-                                          fmt="%.3g"))
-    corners = [summary["nodes"][f"net:corner:{k}"] for k in range(4)] if "net:corner:0" in summary["nodes"] else []
+    add_threads(plotter, thread_mesh(data, frame))
+    corners = corner_nodes(summary)
     if corners:
         plotter.add_mesh(pv.PolyData(points[corners]), color="red", point_size=12,
                          render_points_as_spheres=True)
-    text = f"t = {data['time'][frame]:.2f} s"
+    text = frame_label(summary, data["time"][frame])
     if "body_positions" in data:
         text += _draw_bodies(plotter, directory, data, summary, frame, points)
     plotter.add_text(text, font_size=12)
-    extent = float(np.ptp(np.asarray(plotter.bounds).reshape(3, 2), axis=1).max())
-    decimals = int(np.clip(2 - np.floor(np.log10(extent)), 0, 6)) if extent > 0 else 3
-    plotter.show_bounds(xtitle="x [m]", ytitle="y [m]", ztitle="z [m]", grid=False,
-                        location="outer", ticks="outside", font_size=10, fmt=f"%.{decimals}f",
-                        n_xlabels=3, n_ylabels=3, n_zlabels=3)
-    plotter.add_axes(line_width=3, labels_off=False)
-    plotter.view_isometric()
-    plotter.camera.zoom(0.85)  # leave the right margin to the colour bar
+    add_scale_and_view(plotter)
     path = directory / "net.png"
     plotter.screenshot(str(path))
     plotter.close()
@@ -310,8 +381,7 @@ def _draw_bodies(plotter: Any, directory: Path, data: Any, summary: dict[str, An
 
     bodies, missing = bodies_at_frame(directory, data, summary, frame)
     for body in bodies:
-        faces = np.column_stack([np.full(len(body.faces), 3), body.faces]).ravel()
-        plotter.add_mesh(pv.PolyData(body.vertices, faces), color="lightgrey")
+        plotter.add_mesh(body_surface(body.vertices, body.faces), color="lightgrey")
     touching = contact_nodes(points, bodies, summary)
     if touching.any():
         plotter.add_mesh(pv.PolyData(points[touching]), color="magenta", point_size=10,
@@ -322,11 +392,3 @@ def _draw_bodies(plotter: Any, directory: Path, data: Any, summary: dict[str, An
     if missing:
         text += f"\nnot drawn (mesh without VTK output): {', '.join(missing)}"
     return text
-
-
-if __name__ == "__main__":
-    target = Path(sys.argv[1])
-    if "--plot" in sys.argv:
-        plot_deployment(target)
-    if "--picture" in sys.argv:
-        picture_at_max_area(target)

@@ -5,8 +5,6 @@ rendering does not work)."""
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -16,29 +14,10 @@ import rodnet
 from rodnet.viz.figures import (bodies_at_frame, contact_nodes, deployment_panels,
                                  render_in_subprocess)
 from tests.conftest import small_net_toml
+from tests.viz.rendering import SPHERE_TARGET, require_offscreen
 
 # the small net of conftest thrown up at a fixed sphere it reaches near its largest mouth area
-CAPTURE = small_net_toml(duration=0.6) + """
-[[bodies]]
-name = "target"
-shape = "sphere"
-size = [1.0, 1.0, 1.0]
-position = [1.0, -2.0, 4.0]
-fixed = true
-[contact]
-stiffness = 1.0e5
-damping = 10.0
-friction = 0.3
-"""
-
-
-def _rendering_works() -> bool:
-    probe = "import pyvista as pv; pv.Plotter(off_screen=True).screenshot()"
-    try:
-        done = subprocess.run([sys.executable, "-c", probe], capture_output=True, timeout=120)
-        return done.returncode == 0
-    except (subprocess.TimeoutExpired, OSError):
-        return False
+CAPTURE = small_net_toml(duration=0.6) + SPHERE_TARGET
 
 
 @pytest.fixture(scope="module")
@@ -91,26 +70,9 @@ def test_bodies_are_rebuilt_at_the_frame_and_contact_is_marked(capture_run: Path
 
 
 def test_capture_figures_are_drawn(capture_run: Path) -> None:
-    pytest.importorskip("pyvista")
+    require_offscreen()
     pytest.importorskip("matplotlib")
-    if not _rendering_works():
-        pytest.skip("off-screen rendering is not available on this machine "
-                    "(needs libegl1, libgl1-mesa-dri)")
     assert render_in_subprocess(capture_run, picture=True, plot=True) == []
     for name in ("net.png", "deployment.png"):
         png = (capture_run / name).read_bytes()
         assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
-
-
-def test_the_pictures_process_runs_the_file_without_the_package(tmp_path: Path) -> None:
-    """The pictures' subprocess runs a file as a script with its arguments and imports neither
-    rodnet nor numba for it (what ``python -m rodnet.viz.figures`` would import first)."""
-    from rodnet.viz.figures import AS_SCRIPT
-
-    probe = tmp_path / "probe.py"
-    probe.write_text("import json, sys\n"
-                     "print(json.dumps([sys.argv[1:], sorted({'rodnet', 'numba'} & set(sys.modules))]))\n")
-    done = subprocess.run([sys.executable, "-c", AS_SCRIPT, str(probe), "out", "--plot"],
-                          capture_output=True, text=True, timeout=60)
-    assert done.returncode == 0, done.stderr
-    assert json.loads(done.stdout) == [["out", "--plot"], []]
