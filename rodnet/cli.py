@@ -27,7 +27,10 @@ def _parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="run a scene file")
     run.add_argument("scene", type=Path, help="scene TOML file")
-    demo = sub.add_parser("demo", help="run the built-in reference deployment")
+    demo = sub.add_parser("demo", help="run the built-in reference deployment with Cosserat "
+                          "threads and the lumped reference side by side")
+    demo.add_argument("--quick", action="store_true",
+                      help="the lumped reference alone (a few seconds)")
     val = sub.add_parser("validate", help="run the validation cases and write a report")
     val.add_argument("--cases", type=Path, default=Path("validation/cases"),
                      help="folder of cases (default: validation/cases)")
@@ -149,32 +152,61 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "render":
         return _render(args)
     from rodnet.errors import SceneError
-    from rodnet.scene import load_scene, scene_from_toml
+    from rodnet.scene import load_scene
 
     try:
         if args.command == "demo":
-            scene = scene_from_toml(demo_scene_text(), args.overrides, source="rodnet demo")
-        else:
-            scene = load_scene(args.scene, args.overrides)
-        from rodnet.run import run
+            from rodnet.demo import demo_scenes
 
-        result = run(scene, args.output, progress=False if args.quiet else None,
-                     threads=args.threads)
+            runs = demo_scenes(args.overrides, args.quick)
+        else:
+            runs = [("", load_scene(args.scene, args.overrides), "")]
     except SceneError as exc:
         print(f"rodnet: bad input: {exc}. Nothing was run and no output was written.", file=sys.stderr)
         return EXIT_BAD_INPUT
+    results = []
+    for label, scene, folder in runs:
+        if len(runs) > 1:
+            print(f"rodnet demo: {label}", file=sys.stderr)
+        out = args.output if args.output is not None or not folder else \
+            Path(scene.output.directory)      # None: run() names the scene key in its errors
+        status, result = _run_one(scene, out / folder if folder else out, args,
+                                  movie=args.command == "demo")
+        if status != 0:
+            return status
+        results.append(result)
+    if len(results) == 2:
+        from rodnet.demo import metrics_table, write_comparison
+
+        labels = (runs[0][0], runs[1][0])
+        for w in write_comparison(results[0].directory, labels):
+            print(f"rodnet: warning: {w}", file=sys.stderr)
+        print(f"rodnet demo: {labels[0]} against the {labels[1]} "
+              f"(comparison.png in {results[0].directory}/):")
+        print(metrics_table(labels, (results[0].summary, results[1].summary)))
+    return 0
+
+
+def _run_one(scene, out: Path | None, args: argparse.Namespace, movie: bool):  # type: ignore[no-untyped-def]
+    """Run ``scene`` into ``out``, draw its figures, print its report; returns the exit status
+    (0 ok, 1 failed, 2 bad input, 128 + signal when stopped) and the result."""
+    from rodnet.errors import SceneError
+    from rodnet.run import run
     from rodnet.viz.figures import draw_run_figures
 
-    warnings = list(result.summary.get("warnings", [])) + draw_run_figures(
-        result, scene.output, movie=args.command == "demo")
+    try:
+        result = run(scene, out, progress=False if args.quiet else None, threads=args.threads)
+    except SceneError as exc:
+        print(f"rodnet: bad input: {exc}. Nothing was run and no output was written.", file=sys.stderr)
+        return EXIT_BAD_INPUT, None
+    warnings = list(result.summary.get("warnings", [])) + draw_run_figures(result, scene.output,
+                                                                           movie=movie)
     for w in warnings:
         print(f"rodnet: warning: {w}", file=sys.stderr)
     _report(result)
-    if result.status != "ok":
-        if result.status == "interrupted":
-            return 128 + int(getattr(signal, str(result.summary.get("signal", "SIGINT"))))
-        return EXIT_FAILED
-    return 0
+    if result.status == "interrupted":
+        return 128 + int(getattr(signal, str(result.summary.get("signal", "SIGINT")))), result
+    return (0 if result.status == "ok" else EXIT_FAILED), result
 
 
 def _validate_command(args: argparse.Namespace) -> int:

@@ -127,7 +127,7 @@ def main() -> None:
         folder = args.reuse or Path(tmp) / "demo"
         demo_wall = None
         if args.reuse is None:
-            demo_wall, _ = timed(lambda: rodnet("demo", "-o", str(folder), "--quiet"))
+            demo_wall, _ = timed(lambda: rodnet("demo", "--quick", "-o", str(folder), "--quiet"))
         summary = json.loads((folder / "summary.json").read_text())
         scratch = Path(tmp) / "movies"
         scratch.mkdir()
