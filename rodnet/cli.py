@@ -171,7 +171,7 @@ def main(argv: list[str] | None = None) -> int:
         out = args.output if args.output is not None or not folder else \
             Path(scene.output.directory)      # None: run() names the scene key in its errors
         status, result = _run_one(scene, out / folder if folder else out, args,
-                                  movie=args.command == "demo")
+                                  movie=args.command == "demo" and not folder)
         if status != 0:
             return status
         results.append(result)
