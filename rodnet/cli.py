@@ -240,30 +240,6 @@ def _validate(cases: Path, output: Path, quick: bool, report_dir: Path | None
     ``output/validation.md``. Returns the exit status (0 when all checks pass), the verdict (how
     many checks passed, where the report is) and, with ``report_dir``, the report's builder with
     every case added, to be written once the slow tests have run."""
-
-
-def _render(args: argparse.Namespace) -> int:
-    """``rodnet render``: check the folder and the options, then write the movie."""
-    from rodnet.errors import SceneError
-    from rodnet.viz.movie import DEFAULT_SIZE, movie_target, render_movie
-
-    try:
-        path, gif = movie_target(args.outdir, args.output, args.gif, args.fps)
-    except SceneError as exc:
-        print(f"rodnet render: bad input: {exc}. No movie was written.", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    try:
-        render_movie(args.outdir, path, args.fps, args.size or DEFAULT_SIZE, gif, args.every)
-    except Exception as exc:  # no OpenGL, no ffmpeg: say so without a traceback
-        print(f"rodnet render: could not write {path}: {type(exc).__name__}: {exc}. Off-screen "
-              "rendering needs libegl1 and libgl1-mesa-dri, the MP4 the ffmpeg of "
-              "imageio-ffmpeg (pip install -e '.[viz]').", file=sys.stderr)
-        return EXIT_FAILED
-    print(f"rodnet render: wrote {path}")
-    return 0
-
-
-
     import tempfile
 
     from rodnet.errors import SceneError
@@ -317,6 +293,27 @@ def _render(args: argparse.Namespace) -> int:
                   if builder and len(every) > len(folders) else "")
                + f"; report in {output / 'validation.md'}")
     return (0 if ok else EXIT_FAILED), verdict, builder
+
+
+def _render(args: argparse.Namespace) -> int:
+    """``rodnet render``: check the folder and the options, then write the movie."""
+    from rodnet.errors import SceneError
+    from rodnet.viz.movie import DEFAULT_SIZE, movie_target, render_movie
+
+    try:
+        path, gif = movie_target(args.outdir, args.output, args.gif, args.fps)
+    except SceneError as exc:
+        print(f"rodnet render: bad input: {exc}. No movie was written.", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    try:
+        render_movie(args.outdir, path, args.fps, args.size or DEFAULT_SIZE, gif, args.every)
+    except Exception as exc:  # no OpenGL, no ffmpeg: say so without a traceback
+        print(f"rodnet render: could not write {path}: {type(exc).__name__}: {exc}. Off-screen "
+              "rendering needs libegl1 and libgl1-mesa-dri, the MP4 the ffmpeg of "
+              "imageio-ffmpeg (pip install -e '.[viz]').", file=sys.stderr)
+        return EXIT_FAILED
+    print(f"rodnet render: wrote {path}")
+    return 0
 
 
 def _report(result) -> None:  # type: ignore[no-untyped-def]
