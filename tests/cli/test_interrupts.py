@@ -21,7 +21,10 @@ def _start(tmp_path: Path, duration: float, integrator: str) -> tuple[subprocess
     scene = tmp_path / "net.toml"
     scene.write_text(small_net_toml(duration=duration, integrator=integrator))
     out, log = tmp_path / "out", tmp_path / "stderr.txt"
+    # Ctrl-C as at a terminal: a shell's background job (a CI script run with &) inherits
+    # SIGINT ignored, and rodnet then rightly leaves it ignored
     process = subprocess.Popen([sys.executable, "-m", "rodnet", "run", str(scene), "-o", str(out)],
+                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
                                stdout=subprocess.DEVNULL, stderr=log.open("w"), cwd=tmp_path)
     return process, out, log
 
