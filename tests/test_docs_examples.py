@@ -10,6 +10,8 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PAGES = sorted(p.name for p in (ROOT / "docs").glob("*.md") if "<!-- output:" in p.read_text())
+SLOW_PAGES = {"capture.md"}
+"""Pages whose examples run for more than a minute: run with ``-m slow``."""
 
 
 def _examples():  # type: ignore[no-untyped-def]
@@ -25,7 +27,8 @@ def test_the_pages_have_examples() -> None:
     assert "getting_started.md" in PAGES
 
 
-@pytest.mark.parametrize("page", PAGES)
+@pytest.mark.parametrize("page", [pytest.param(p, marks=pytest.mark.slow) if p in SLOW_PAGES
+                                  else p for p in PAGES])
 def test_quoted_output_is_what_the_example_gives(page: str, tmp_path: Path) -> None:
     examples = _examples()
     results = examples.run_page((ROOT / "docs" / page).read_text(), tmp_path)

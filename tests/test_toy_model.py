@@ -234,6 +234,7 @@ def _state(x, v):
     return State(Configuration(x), v.ravel())
 
 
+@pytest.mark.slow
 def test_the_chain_drapes_over_a_fixed_ball_implicitly(spring_chain, tmp_path: Path) -> None:
     text = CHAIN.format(integrator="backward-euler", supports=PINS) + BALL.format(kind="fixed = true", z=0.84)
     r = run(scene_from_toml(text, ["simulation.duration=0.5"]), tmp_path, progress=False)
