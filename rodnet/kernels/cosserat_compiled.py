@@ -482,6 +482,35 @@ def _resultants(stiffness, tau, rest_length, e, eps, rate, psi, phi, tension_onl
 
 
 @numba.njit(inline="always")
+def _element_force(N0, N1, N2, M0, M1, M2, psi, R, g, beta, gamma, force,
+                   e):  # pragma: no cover - compiled
+    """Row ``e`` of ``force`` (E, 12): the internal force ``S [R_m N, P2 h - A M, P2^T h + A^T M]``,
+    ``h = N x g``, of the resultants ``N``, ``M``, ``psi``, ``R_m`` (row-major 9-tuple), ``g``
+    and the coefficients ``beta``, ``gamma`` (the reduced force (_reduced_force) expanded to the
+    12 element DOF (expand_vector))."""
+    p0, p1, p2 = psi
+    g0, g1, g2 = g
+    h0, h1, h2 = _cross(N0, N1, N2, g0, g1, g2)
+    ph0, ph1, ph2 = _cross(p0, p1, p2, h0, h1, h2)
+    pm0, pm1, pm2 = _cross(p0, p1, p2, M0, M1, M2)
+    ppm0, ppm1, ppm2 = _cross(p0, p1, p2, pm0, pm1, pm2)
+    AM0 = M0 + 0.5 * pm0 + gamma * ppm0
+    AM1 = M1 + 0.5 * pm1 + gamma * ppm1
+    AM2 = M2 + 0.5 * pm2 + gamma * ppm2
+    fd0 = R[0] * N0 + R[1] * N1 + R[2] * N2
+    fd1 = R[3] * N0 + R[4] * N1 + R[5] * N2
+    fd2 = R[6] * N0 + R[7] * N1 + R[8] * N2
+    force[e, 0], force[e, 1], force[e, 2] = -fd0, -fd1, -fd2
+    force[e, 6], force[e, 7], force[e, 8] = fd0, fd1, fd2
+    force[e, 3] = 0.5 * h0 + beta * ph0 - AM0
+    force[e, 4] = 0.5 * h1 + beta * ph1 - AM1
+    force[e, 5] = 0.5 * h2 + beta * ph2 - AM2
+    force[e, 9] = 0.5 * h0 - beta * ph0 + (AM0 - pm0)
+    force[e, 10] = 0.5 * h1 - beta * ph1 + (AM1 - pm1)
+    force[e, 11] = 0.5 * h2 - beta * ph2 + (AM2 - pm2)
+
+
+@numba.njit(inline="always")
 def _state_and_force(rest_length, reference_strain, stiffness, tau, x, q, velocity, tension_only,
                      kink, series, beta_angle, gamma_angle, step_reference, inv_h, force, psi_out,
                      R_out, g_out, coefficients, constitutive, velocity9,
@@ -519,25 +548,8 @@ def _state_and_force(rest_length, reference_strain, stiffness, tau, x, q, veloci
         te = tau[e]
         (N0, N1, N2, M0, M1, M2), D0, V0 = _resultants(
             stiffness, tau, rest_length, e, eps, rate, (p0, p1, p2), phi, tension_only, kink)
-        # reduced force (_reduced_force) and its expansion (expand_vector)
-        h0, h1, h2 = _cross(N0, N1, N2, g0, g1, g2)
-        ph0, ph1, ph2 = _cross(p0, p1, p2, h0, h1, h2)
-        pm0, pm1, pm2 = _cross(p0, p1, p2, M0, M1, M2)
-        ppm0, ppm1, ppm2 = _cross(p0, p1, p2, pm0, pm1, pm2)
-        AM0 = M0 + 0.5 * pm0 + gamma * ppm0
-        AM1 = M1 + 0.5 * pm1 + gamma * ppm1
-        AM2 = M2 + 0.5 * pm2 + gamma * ppm2
-        fd0 = R[0] * N0 + R[1] * N1 + R[2] * N2
-        fd1 = R[3] * N0 + R[4] * N1 + R[5] * N2
-        fd2 = R[6] * N0 + R[7] * N1 + R[8] * N2
-        force[e, 0], force[e, 1], force[e, 2] = -fd0, -fd1, -fd2
-        force[e, 6], force[e, 7], force[e, 8] = fd0, fd1, fd2
-        force[e, 3] = 0.5 * h0 + beta * ph0 - AM0
-        force[e, 4] = 0.5 * h1 + beta * ph1 - AM1
-        force[e, 5] = 0.5 * h2 + beta * ph2 - AM2
-        force[e, 9] = 0.5 * h0 - beta * ph0 + (AM0 - pm0)
-        force[e, 10] = 0.5 * h1 - beta * ph1 + (AM1 - pm1)
-        force[e, 11] = 0.5 * h2 - beta * ph2 + (AM2 - pm2)
+        _element_force(N0, N1, N2, M0, M1, M2, (p0, p1, p2), R, (g0, g1, g2), beta, gamma,
+                       force, e)
         if store_monitor:  # the axial force along the chord: a reversed element's (C51) pulls
             monitor_out[e, 0] = -N0 if tension_only and N0 < 0.0 else N0
             monitor_out[e, 1] = phi
@@ -814,25 +826,8 @@ def rod_forces(x, quat, v, W, rods, force, monitor):  # pragma: no cover - compi
                 (w2_ + 0.5 * c2 + gamma * cc2 + k2) * inv_le)
         (N0, N1, N2, M0, M1, M2), _, _ = _resultants(
             stiffness, tau, rest_length, e, eps, rate, (p0, p1, p2), phi, tension_only, kink)
-        # the internal force (as _state_and_force)
-        h0, h1, h2 = _cross(N0, N1, N2, g0, g1, g2)
-        ph0, ph1, ph2 = _cross(p0, p1, p2, h0, h1, h2)
-        pm0, pm1, pm2 = _cross(p0, p1, p2, M0, M1, M2)
-        ppm0, ppm1, ppm2 = _cross(p0, p1, p2, pm0, pm1, pm2)
-        AM0 = M0 + 0.5 * pm0 + gamma * ppm0
-        AM1 = M1 + 0.5 * pm1 + gamma * ppm1
-        AM2 = M2 + 0.5 * pm2 + gamma * ppm2
-        fd0 = R[0] * N0 + R[1] * N1 + R[2] * N2
-        fd1 = R[3] * N0 + R[4] * N1 + R[5] * N2
-        fd2 = R[6] * N0 + R[7] * N1 + R[8] * N2
-        force[e, 0], force[e, 1], force[e, 2] = -fd0, -fd1, -fd2
-        force[e, 6], force[e, 7], force[e, 8] = fd0, fd1, fd2
-        force[e, 3] = 0.5 * h0 + beta * ph0 - AM0
-        force[e, 4] = 0.5 * h1 + beta * ph1 - AM1
-        force[e, 5] = 0.5 * h2 + beta * ph2 - AM2
-        force[e, 9] = 0.5 * h0 - beta * ph0 + (AM0 - pm0)
-        force[e, 10] = 0.5 * h1 - beta * ph1 + (AM1 - pm1)
-        force[e, 11] = 0.5 * h2 - beta * ph2 + (AM2 - pm2)
+        _element_force(N0, N1, N2, M0, M1, M2, (p0, p1, p2), R, (g0, g1, g2), beta, gamma,
+                       force, e)
         # the axial force along the chord: a reversed element's (C51) pulls
         monitor[e, 0] = -N0 if tension_only and N0 < 0.0 else N0
         monitor[e, 1] = phi

@@ -214,6 +214,40 @@ def _forces(t, x, quat, v, W, p, s):  # pragma: no cover - compiled
 
 
 @numba.njit(inline="always")
+def _turned(aw, ax, ay, az, bw, bx, by, bz):  # pragma: no cover - compiled
+    """``q o exp(h W)`` normalised, from ``q`` and ``exp(h W) = (bw, bx, by, bz)``
+    (so3_compiled.retract), and whether its norm was finite and positive."""
+    qw = aw * bw - ax * bx - ay * by - az * bz
+    qx = aw * bx + ax * bw + ay * bz - az * by
+    qy = aw * by - ax * bz + ay * bw + az * bx
+    qz = aw * bz + ax * by - ay * bx + az * bw
+    norm = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
+    inv = 1.0 / norm
+    return qw * inv, qx * inv, qy * inv, qz * inv, math.isfinite(norm) & (norm > 0.0)
+
+
+@numba.njit(inline="always")
+def _turn_far(quat, W, h):  # pragma: no cover - compiled
+    """``q <- q o exp(h W)`` for the rotation nodes turned by at least 0.05 rad in the step
+    (``W`` already updated), by ``cos`` and ``sin``; returns how many became non-finite."""
+    bad = 0
+    for r in range(W.shape[0]):
+        d0, d1, d2 = h * W[r, 0], h * W[r, 1], h * W[r, 2]
+        a2 = d0 * d0 + d1 * d1 + d2 * d2
+        if not a2 < 2.5e-3:
+            angle = math.sqrt(a2)
+            c = math.cos(0.5 * angle)
+            sn = math.sin(0.5 * angle) / angle
+            qw, qx, qy, qz, ok = _turned(quat[r, 0], quat[r, 1], quat[r, 2], quat[r, 3], c,
+                                         sn * d0, sn * d1, sn * d2)
+            if ok:
+                quat[r, 0], quat[r, 1], quat[r, 2], quat[r, 3] = qw, qx, qy, qz
+            else:
+                bad += 1
+    return bad
+
+
+@numba.njit(inline="always")
 def _update(x, quat, v, W, f_node, m_node, nodes, rotations, h):  # pragma: no cover - compiled
     """One symplectic Euler update (S9), (C46), (C47) in place; False when the state became
     non-finite."""
@@ -225,36 +259,36 @@ def _update(x, quat, v, W, f_node, m_node, nodes, rotations, h):  # pragma: no c
             x[i, k] += h * v[i, k]
         if not (math.isfinite(x[i, 0]) and math.isfinite(x[i, 1]) and math.isfinite(x[i, 2])):
             bad += 1
-    inertia, inv_inertia = rotations.inertia, rotations.inv_inertia
+    # the rotations in a loop without branches or calls, which the compiler vectorises (flat
+    # arrays, fixed strides): every node by the series of exp below 0.05 rad; a node turned
+    # further in one step keeps its quaternion there and is redone by _turn_far
+    Wf, Q, M = W.reshape(-1), quat.reshape(-1), m_node.reshape(-1)
+    J, Ji = rotations.inertia.reshape(-1), rotations.inv_inertia.reshape(-1)
+    far = 0
     for r in numba.prange(W.shape[0]):
-        w0, w1, w2 = W[r, 0], W[r, 1], W[r, 2]
-        j0, j1, j2 = inertia[r, 0] * w0, inertia[r, 1] * w1, inertia[r, 2] * w2
-        W[r, 0] = w0 + h * (m_node[r, 0] - (w1 * j2 - w2 * j1)) * inv_inertia[r, 0]
-        W[r, 1] = w1 + h * (m_node[r, 1] - (w2 * j0 - w0 * j2)) * inv_inertia[r, 1]
-        W[r, 2] = w2 + h * (m_node[r, 2] - (w0 * j1 - w1 * j0)) * inv_inertia[r, 2]
-        # q <- q o exp(h W) (so3_compiled.retract); below 0.05 rad the Taylor series of
-        # cos(a/2) and sin(a/2)/a to a^8, whose remainder is below 1e-17
-        d0, d1, d2 = h * W[r, 0], h * W[r, 1], h * W[r, 2]
+        a, b = 3 * r, 4 * r
+        w0, w1, w2 = Wf[a], Wf[a + 1], Wf[a + 2]
+        j0, j1, j2 = J[a] * w0, J[a + 1] * w1, J[a + 2] * w2
+        n0 = w0 + h * (M[a] - (w1 * j2 - w2 * j1)) * Ji[a]
+        n1 = w1 + h * (M[a + 1] - (w2 * j0 - w0 * j2)) * Ji[a + 1]
+        n2 = w2 + h * (M[a + 2] - (w0 * j1 - w1 * j0)) * Ji[a + 2]
+        Wf[a], Wf[a + 1], Wf[a + 2] = n0, n1, n2
+        d0, d1, d2 = h * n0, h * n1, h * n2
         a2 = d0 * d0 + d1 * d1 + d2 * d2
-        if a2 < 2.5e-3:
-            c = 1.0 + a2 * (-1.0 / 8.0 + a2 * (1.0 / 384.0 + a2 * (-1.0 / 46080.0 + a2 / 10321920.0)))
-            sn = 0.5 + a2 * (-1.0 / 48.0 + a2 * (1.0 / 3840.0 + a2 * (-1.0 / 645120.0 + a2 / 185794560.0)))
-        else:
-            angle = math.sqrt(a2)
-            c = math.cos(0.5 * angle)
-            sn = math.sin(0.5 * angle) / angle
-        bw, bx, by, bz = c, sn * d0, sn * d1, sn * d2
-        aw, ax, ay, az = quat[r, 0], quat[r, 1], quat[r, 2], quat[r, 3]
-        qw = aw * bw - ax * bx - ay * by - az * bz
-        qx = aw * bx + ax * bw + ay * bz - az * by
-        qy = aw * by - ax * bz + ay * bw + az * bx
-        qz = aw * bz + ax * by - ay * bx + az * bw
-        norm = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
-        if math.isfinite(norm) and norm > 0.0:
-            inv = 1.0 / norm
-            quat[r, 0], quat[r, 1], quat[r, 2], quat[r, 3] = qw * inv, qx * inv, qy * inv, qz * inv
-        else:
-            bad += 1
+        c = 1.0 + a2 * (-1.0 / 8.0 + a2 * (1.0 / 384.0 + a2 * (-1.0 / 46080.0 + a2 / 10321920.0)))
+        sn = 0.5 + a2 * (-1.0 / 48.0 + a2 * (1.0 / 3840.0 + a2 * (-1.0 / 645120.0 + a2 / 185794560.0)))
+        aw, ax, ay, az = Q[b], Q[b + 1], Q[b + 2], Q[b + 3]
+        qw, qx, qy, qz, ok = _turned(aw, ax, ay, az, c, sn * d0, sn * d1, sn * d2)
+        near = a2 < 2.5e-3
+        keep = near & ok   # selected, not branched on (a load in a branch stops vectorising)
+        Q[b] = qw if keep else aw
+        Q[b + 1] = qx if keep else ax
+        Q[b + 2] = qy if keep else ay
+        Q[b + 3] = qz if keep else az
+        far += int(not near)
+        bad += int(near & (not ok))
+    if far:
+        bad += _turn_far(quat, W, h)
     return bad == 0
 
 
@@ -346,7 +380,7 @@ def _march(x, quat, v, W, bodies, t0, t_end, n0, h0, p, control,
     return Marched(0, t, steps, evaluations, h_min, h_max, peak, phi_max, work)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def march(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control,
           scratch):  # pragma: no cover - compiled
     """Advance positions ``x`` (N, 3), quaternions ``quat`` (R, 4), velocities ``v`` (N, 3),
@@ -356,7 +390,7 @@ def march(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control,
     return _march(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control, scratch)
 
 
-@numba.njit(cache=True, parallel=True)
+@numba.njit(cache=True, parallel=True, error_model="numpy")
 def march_parallel(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control,
                    scratch):  # pragma: no cover - compiled
     """:func:`march` with the loops over rod elements and nodes on numba's threads."""

@@ -9,19 +9,22 @@ cost per step compares directly:
 - Cosserat, pinned knots;
 - Cosserat, rigid knots (the default).
 
-Each run is a child process (``python -c``, the code under test on ``PYTHONPATH``: this tree and,
-with ``--old PATH``, a source tree of an older rodnet) on one thread; it reports the CPU time of
-its integrating thread (``time.thread_time`` around :func:`rodnet.run.run`: the machine may be
-shared, and a descheduled thread costs no CPU time), the integration wall time of
-``summary.json`` and the number of steps. Old and new runs are interleaved and repeated; the
-minimum per step is kept. A first run of every variant compiles (numba's cache) and is not timed.
-The table also gives ``max_mouth_area`` of every variant, new against old, and the load average.
+One child process per code tree (``python -c``, the code under test on ``PYTHONPATH``: this tree
+and, with ``--old PATH``, a source tree of an older rodnet), on one thread, runs every variant
+once to load or compile numba's cache (untimed), then ``--repeat`` rounds of the three variants
+in turn (cable and Cosserat alternated in one process: a change of the machine's load touches
+both). Each run reports the CPU time of its thread (``time.thread_time``: the machine may be
+shared, and a descheduled thread costs no CPU time) of the whole :func:`rodnet.run.run` call and
+of the compiled step loop alone (the loop functions of :mod:`rodnet.integrate.explicit` wrapped
+by the child), so the table gives both the cost per step of the whole run (set-up, such as the
+explicit plan's element eigenvalues (C48)-(C50), and output spread over the steps) and the
+marginal cost per step of a long run. The minimum over the rounds is kept. The table also gives
+``max_mouth_area`` of every variant, new against old, and the load average.
 
 Usage, from the repository root:
-``python validation/benchmarks/cosserat_explicit_speed.py --old ../old [--duration 0.1]
-[--repeat 3] [--full]`` (``--full``: also the whole 3 s deployment of the new Cosserat variants
-at their default adaptive step, for the mouth area). Writes
-``results/cosserat_explicit_speed.md``.
+``python validation/benchmarks/cosserat_explicit_speed.py --old ../old [--duration 0.05]
+[--repeat 3]``. Writes the table at the top of ``results/cosserat_explicit_speed.md``; the
+sections below it (from its first ``## `` heading on: notes, earlier tables) are kept.
 """
 
 from __future__ import annotations
@@ -31,7 +34,6 @@ import json
 import os
 import subprocess
 import sys
-import tempfile
 from pathlib import Path
 
 HERE = Path(__file__).parent
@@ -48,107 +50,124 @@ DT = 1.5e-5
 """The common fixed step [s]: below the stability limit of every variant (cable and Cosserat
 about 3.5e-5 s with rigid knots, C48) and below the rotation-controlled step of the bent
 Cosserat elements (C50)."""
+EARLIER = "## Earlier measurements"
 
 CHILD = """
-import json, sys, time
+import json, os, sys, tempfile, time
+import rodnet.integrate.explicit as ix
 from rodnet.cli import demo_scene_text
 from rodnet.run import run
 from rodnet.scene import scene_from_toml
-scene = scene_from_toml(demo_scene_text(), json.loads(sys.argv[1]), source="benchmark")
-start = time.thread_time()
-result = run(scene, sys.argv[2], progress=False, threads=1)
-cpu = time.thread_time() - start
-s = result.summary
-print(json.dumps({"cpu": cpu, "wall": s["wall_time_s"], "steps": s["steps"],
-                  "area": s["metrics"]["max_mouth_area"] if "metrics" in s else s["max_mouth_area"],
-                  "status": s["status"]}))
+variants, repeat = json.loads(sys.argv[1]), int(sys.argv[2])
+loop_cpu = [0.0]
+def timed(f):
+    def call(*args):
+        start = time.thread_time()
+        try:
+            return f(*args)
+        finally:
+            loop_cpu[0] += time.thread_time() - start
+    return call
+for name in ("march", "march_parallel", "march_nodes"):
+    setattr(ix, name, timed(getattr(ix, name)))
+def one(overrides, out):
+    scene = scene_from_toml(demo_scene_text(), overrides, source="benchmark")
+    loop_cpu[0] = 0.0
+    start = time.thread_time()
+    result = run(scene, out, progress=False, threads=1)
+    cpu = time.thread_time() - start
+    s = result.summary
+    return {"cpu": cpu, "loop": loop_cpu[0], "steps": s["steps"], "status": s["status"],
+            "area": s["metrics"]["max_mouth_area"] if "metrics" in s else s["max_mouth_area"],
+            "load": os.getloadavg()[0]}
+with tempfile.TemporaryDirectory() as tmp:
+    for name, (warm, timed_run) in variants.items():
+        one(warm, os.path.join(tmp, "warm"))
+    for k in range(repeat):
+        for name, (warm, timed_run) in variants.items():
+            r = one(timed_run, os.path.join(tmp, "run"))
+            r.update(variant=name, round=k)
+            print(json.dumps(r), flush=True)
 """
 
 
-def child(tree: Path, overrides: list[str], out: Path) -> dict[str, float]:
-    """One run of the demo with ``overrides`` on the code of ``tree``."""
+def child(tree: Path, duration: float, repeat: int) -> list[dict]:
+    """Every variant ``repeat`` times, alternated, in one process on the code of ``tree``."""
+    fixed = [f"simulation.duration={duration}", "simulation.adaptive=false",
+             f"simulation.dt={DT}"]
+    variants = {name: (BASE + sets + ["simulation.duration=0.002"], BASE + sets + fixed)
+                for name, sets in VARIANTS.items()}
     env = {**os.environ, "PYTHONPATH": str(tree), "NUMBA_NUM_THREADS": "1"}
-    done = subprocess.run([sys.executable, "-c", CHILD, json.dumps(overrides), str(out)],
+    done = subprocess.run([sys.executable, "-c", CHILD, json.dumps(variants), str(repeat)],
                           env=env, capture_output=True, text=True, cwd=tree)
     if done.returncode != 0:
         raise RuntimeError(done.stderr[-3000:])
-    return json.loads(done.stdout.strip().splitlines()[-1])
+    return [json.loads(line) for line in done.stdout.splitlines() if line.startswith("{")]
+
+
+def best(runs: list[dict], variant: str) -> dict:
+    """The least CPU time per step of ``variant``'s runs, whole run and step loop."""
+    mine = [r for r in runs if r["variant"] == variant]
+    steps = mine[0]["steps"]
+    return {"steps": steps, "area": mine[0]["area"],
+            "run": min(r["cpu"] for r in mine) / steps, "loop": min(r["loop"] for r in mine) / steps,
+            "areas": {r["area"] for r in mine}}
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--old", type=Path, required=True, help="source tree of the old rodnet")
-    parser.add_argument("--duration", type=float, default=0.1, help="simulated time [s]")
+    parser.add_argument("--duration", type=float, default=0.05, help="simulated time [s]")
     parser.add_argument("--repeat", type=int, default=3)
-    parser.add_argument("--full", action="store_true", help="also the 3 s deployment (new)")
     args = parser.parse_args()
-    trees = {"old": args.old.resolve(), "new": ROOT}
-    loads = [os.getloadavg()[0]]
-    best: dict[tuple[str, str], dict[str, float]] = {}
-    with tempfile.TemporaryDirectory() as tmp:
-        for (variant, sets) in VARIANTS.items():   # compile (numba's cache), untimed
-            for name, tree in trees.items():
-                child(tree, BASE + sets + ["simulation.duration=0.002"], Path(tmp) / "warm")
-        fixed = [f"simulation.duration={args.duration}", "simulation.adaptive=false",
-                 f"simulation.dt={DT}"]
-        for _ in range(args.repeat):
-            for variant, sets in VARIANTS.items():
-                for name, tree in trees.items():
-                    r = child(tree, BASE + sets + fixed, Path(tmp) / f"{variant}-{name}")
-                    r["cpu_step"] = r["cpu"] / r["steps"]
-                    r["wall_step"] = r["wall"] / r["steps"]
-                    key = (variant, name)
-                    if key not in best:
-                        best[key] = r
-                    else:
-                        best[key]["cpu_step"] = min(best[key]["cpu_step"], r["cpu_step"])
-                        best[key]["wall_step"] = min(best[key]["wall_step"], r["wall_step"])
-                    loads.append(os.getloadavg()[0])
-                    print(variant, name, r, flush=True)
-        full = {}
-        if args.full:
-            for variant in ("Cosserat pinned", "Cosserat rigid"):
-                for name, tree in trees.items():
-                    full[(variant, name)] = child(tree, BASE + VARIANTS[variant],
-                                                  Path(tmp) / f"full-{variant}-{name}")
-                    print("full", variant, name, full[(variant, name)], flush=True)
+    runs = {}
+    for name, tree in (("old", args.old.resolve()), ("new", ROOT)):
+        runs[name] = child(tree, args.duration, args.repeat)
+        for r in runs[name]:
+            print(name, r, flush=True)
+    loads = [r["load"] for rs in runs.values() for r in rs]
+    table = {(v, name): best(runs[name], v) for v in VARIANTS for name in runs}
     lines = [
         "# Explicit Cosserat threads: cost per step against cable threads, old and new code",
         "",
         f"Reference deployment (`rodnet demo`, 21 x 21 knots, `model.elements_per_thread=2`, "
         f"explicit), {args.duration} s simulated with the fixed step {DT:g} s "
-        "(`simulation.adaptive=false`) for every variant, one thread; minimum over "
-        f"{args.repeat} interleaved repeats. CPU: `time.thread_time` of the integrating run "
-        "(insensitive to being descheduled on a shared machine); wall: `summary.json` "
-        f"`wall_time_s`. One-minute load average during the runs: {min(loads):.1f} to "
-        f"{max(loads):.1f} on {os.cpu_count()} cores.",
+        "(`simulation.adaptive=false`) for every variant, one thread. One process per code "
+        "tree runs the three variants in turn, "
+        f"{args.repeat} rounds after an untimed one (numba's cache); minimum per step over the "
+        "rounds. CPU time of the thread (`time.thread_time`): *run* is the whole "
+        "`rodnet.run.run` call (set-up and output spread over the steps), *loop* the compiled "
+        "step loop alone (the marginal cost of a step in a long run). One-minute load average "
+        f"during the runs: {min(loads):.1f} to {max(loads):.1f} on {os.cpu_count()} cores.",
         "",
-        "| variant | steps | old CPU [us/step] | new CPU [us/step] | speed-up | old / cable | "
-        "new / cable | old wall [us/step] | new wall [us/step] | max_mouth_area old [m^2] | "
-        "new [m^2] | difference [% of old] |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| variant | steps | run old [us/step] | run new [us/step] | run speed-up | loop old "
+        "[us/step] | loop new [us/step] | loop speed-up | run / cable old | run / cable new | "
+        "loop / cable old | loop / cable new | max_mouth_area old [m^2] | new [m^2] | "
+        "difference [% of old] |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
-    for variant in VARIANTS:
-        o, n = best[(variant, "old")], best[(variant, "new")]
-        co, cn = best[("cable", "old")]["cpu_step"], best[("cable", "new")]["cpu_step"]
+    for v in VARIANTS:
+        o, n = table[(v, "old")], table[(v, "new")]
+        co, cn = table[("cable", "old")], table[("cable", "new")]
         lines.append(
-            f"| {variant} | {n['steps']} | {1e6 * o['cpu_step']:.1f} | {1e6 * n['cpu_step']:.1f} | "
-            f"{o['cpu_step'] / n['cpu_step']:.2f} | {o['cpu_step'] / co:.2f} | "
-            f"{n['cpu_step'] / cn:.2f} | {1e6 * o['wall_step']:.1f} | {1e6 * n['wall_step']:.1f} | "
-            f"{o['area']:.6g} | {n['area']:.6g} | {100 * (n['area'] - o['area']) / o['area']:+.4f} |")
-    if full:
-        lines += ["", "Whole deployment (3 s, default adaptive step, one thread):", "",
-                  "| variant | code | steps | max_mouth_area [m^2] | difference [% of old] |",
-                  "|---|---|---|---|---|"]
-        for variant in ("Cosserat pinned", "Cosserat rigid"):
-            o = full[(variant, "old")]
-            for name in ("old", "new"):
-                r = full[(variant, name)]
-                lines.append(f"| {variant} | {name} | {r['steps']} | {r['area']:.6g} | "
-                             f"{100 * (r['area'] - o['area']) / o['area']:+.4f} |")
-    text = "\n".join(lines) + "\n"
+            f"| {v} | {n['steps']} | {1e6 * o['run']:.1f} | {1e6 * n['run']:.1f} | "
+            f"{o['run'] / n['run']:.2f} | {1e6 * o['loop']:.1f} | {1e6 * n['loop']:.1f} | "
+            f"{o['loop'] / n['loop']:.2f} | {o['run'] / co['run']:.2f} | "
+            f"{n['run'] / cn['run']:.2f} | {o['loop'] / co['loop']:.2f} | "
+            f"{n['loop'] / cn['loop']:.2f} | {o['area']:.6f} | {n['area']:.6f} | "
+            f"{100 * (n['area'] - o['area']) / o['area']:+.4f} |")
+        if len(o["areas"] | n["areas"]) > 1:
+            lines.append(f"|  | (areas differ between rounds: {sorted(o['areas'] | n['areas'])}) |")
+    path = HERE / "results" / "cosserat_explicit_speed.md"
+    earlier = ""
+    if path.exists():   # the sections below the table (notes, earlier tables) are kept
+        text = path.read_text()
+        kept = text.find("\n## ")
+        earlier = text[kept + 1:] if kept >= 0 else \
+            EARLIER + "\n\n" + text.split("\n", 1)[1].lstrip("\n")
+    text = "\n".join(lines) + "\n\n" + earlier
     print(text)
-    (HERE / "results" / "cosserat_explicit_speed.md").write_text(text)
+    path.write_text(text)
 
 
 if __name__ == "__main__":

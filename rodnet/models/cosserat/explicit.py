@@ -68,13 +68,20 @@ def stress_free_element_states(model: CosseratModel, angle: float = 0.0) -> tupl
     first bending axis on top of its reference curvature (0: the stress-free state): end
     positions (E, 2, 3) [m] and material quaternions (E, 2, 4), the first end at the origin with
     the identity triad (§Kinematics: ``psi = Le K0 + angle e_2``, ``g = Le Gamma0``)."""
-    n = len(model.rest_length)
-    Le = model.rest_length[:, None]
-    psi = Le * model.reference_strain[:, 3:]
+    return _stress_free_states(model.rest_length, model.reference_strain, angle)
+
+
+def _stress_free_states(rest_length: FloatArray, reference_strain: FloatArray,
+                        angle: float) -> tuple[FloatArray, FloatArray]:
+    """:func:`stress_free_element_states` of elements of rest lengths ``rest_length`` (E,) and
+    reference strains ``reference_strain`` (E, 6)."""
+    n = len(rest_length)
+    Le = rest_length[:, None]
+    psi = Le * reference_strain[:, 3:]
     psi[:, 1] += angle
     midpoint = so3.quat_to_matrix(so3.quat_from_rotvec(0.5 * psi))
     x = np.zeros((n, 2, 3))
-    x[:, 1] = np.einsum("eij,ej->ei", midpoint, Le * model.reference_strain[:, :3])
+    x[:, 1] = np.einsum("eij,ej->ei", midpoint, Le * reference_strain[:, :3])
     q = np.zeros((n, 2, 4))
     q[:, 0, 0] = 1.0
     q[:, 1] = so3.quat_from_rotvec(psi)
@@ -85,11 +92,56 @@ def element_stiffness(model: CosseratModel, angle: float = 0.0) -> FloatArray:
     """(E, 12, 12) symmetric part of every element's stiffness at rest in the state of
     :func:`stress_free_element_states`, axial law linear (a taut thread: the tension-only clamp
     only removes stiffness)."""
-    x, q = stress_free_element_states(model, angle)
-    _, K, _ = internal_force_and_tangents(model.rest_length, model.reference_strain,
-                                          model.stiffness, model.tau, x, q,
-                                          np.zeros((len(x), 12)), False, model.kink_strain)
-    return 0.5 * (K + K.transpose(0, 2, 1))
+    kinds, kind = _stiffness_kinds(model, angle)
+    return kinds[kind]
+
+
+def _stiffness_kinds(model: CosseratModel, angle: float) -> tuple[FloatArray, NDArray[np.intp]]:
+    """:func:`element_stiffness` as ``kinds[kind]``: the stiffness (k, 12, 12) of each kind of
+    element (alike in rest length, reference strains, stiffness and tau: most of a net's
+    elements are of a few kinds), evaluated once per kind, and each element's kind (E,)."""
+    sections = np.column_stack([model.rest_length, model.reference_strain, model.stiffness,
+                                model.tau])
+    kinds, kind = _distinct_rows(sections)
+    rest_length, reference_strain = kinds[:, 0], kinds[:, 1:7]
+    x, q = _stress_free_states(rest_length, reference_strain, angle)
+    _, K, _ = internal_force_and_tangents(rest_length, reference_strain, kinds[:, 7:13],
+                                          kinds[:, 13], x, q, np.zeros((len(x), 12)), False,
+                                          model.kink_strain)
+    return 0.5 * (K + K.transpose(0, 2, 1)), kind
+
+
+_ROW_HASH = np.random.default_rng(20261202).integers(1, 2**63, 256, dtype=np.uint64) | 1
+"""Odd multipliers of the columns of :func:`_distinct_rows`' hash."""
+
+
+def _distinct_rows(a: FloatArray) -> tuple[FloatArray, NDArray[np.intp]]:
+    """The distinct rows (bit for bit) of ``a`` (n, m) and for each row its index among them
+    (n,).
+
+    Rows are grouped by a hash of their bits (a sum modulo 2^64 of mixed bits, which no order of
+    summation changes), and the grouping is checked bit for bit; should two different rows share
+    a hash, the rows are sorted instead.
+    """
+    a = np.ascontiguousarray(a, dtype=np.float64)
+    bits = a.view(np.uint64)
+    m = a.shape[1]
+    weights = _ROW_HASH[:m] if m <= len(_ROW_HASH) else np.resize(_ROW_HASH, m)
+    mixed = (bits ^ (bits >> np.uint64(29))) * weights   # the sign and exponent bits too
+    key = (mixed ^ (mixed >> np.uint64(32))).sum(axis=1, dtype=np.uint64)
+    _, rows, kind = np.unique(key, return_index=True, return_inverse=True)
+    kind = kind.ravel()
+    if not np.array_equal(bits, bits[rows][kind]):
+        _, rows, kind = np.unique(bits, axis=0, return_index=True, return_inverse=True)
+        kind = kind.ravel()
+    return a[rows], kind
+
+
+def _first_of_each(kind: NDArray[np.intp]) -> NDArray[np.intp]:
+    """For each kind ``0 .. kind.max()`` of ``kind`` (n,), its first index."""
+    first = np.zeros(kind.max() + 1 if len(kind) else 0, np.intp)
+    first[kind[::-1]] = np.arange(len(kind) - 1, -1, -1)
+    return first
 
 
 def frequency_for_step(h: float, tau: FloatArray, safety: float) -> FloatArray:
@@ -150,11 +202,19 @@ class ElementBound:
             return np.where(self.free, 1.0 / np.sqrt(mass), 0.0)
 
     @staticmethod
-    def largest(K: FloatArray, inv_sqrt_mass: FloatArray, dofs: slice | NDArray[np.int64] = slice(None)) -> FloatArray:
-        """(E,) largest eigenvalue [rad^2/s^2] of ``M_e^-1/2 K_e M_e^-1/2`` over ``dofs``."""
-        A = inv_sqrt_mass[:, :, None] * K * inv_sqrt_mass[:, None, :]
-        A = A[:, dofs][:, :, dofs]
-        return np.linalg.eigvalsh(A)[:, -1]
+    def largest(K: FloatArray | tuple[FloatArray, NDArray[np.intp]], inv_sqrt_mass: FloatArray,
+                dofs: slice | NDArray[np.int64] = slice(None)) -> FloatArray:
+        """(E,) largest eigenvalue [rad^2/s^2] of ``M_e^-1/2 K_e M_e^-1/2`` over ``dofs``;
+        ``K`` (E, 12, 12), or ``(kinds, kind)`` of :func:`_stiffness_kinds` for ``kinds[kind]``.
+
+        Elements alike in stiffness and masses have the same matrix: it is solved once.
+        """
+        kinds, kind = (K, np.arange(len(K))) if isinstance(K, np.ndarray) else K
+        _, alike = _distinct_rows(np.column_stack([kind.astype(float), inv_sqrt_mass]))
+        first = _first_of_each(alike)
+        s = inv_sqrt_mass[first]
+        A = s[:, :, None] * kinds[kind[first]] * s[:, None, :]
+        return np.linalg.eigvalsh(A[:, dofs][:, :, dofs])[alike, -1]
 
 
 def explicit_plan(model: CosseratModel, dt: float, adaptive: bool, safety: float,
@@ -183,7 +243,7 @@ def explicit_plan(model: CosseratModel, dt: float, adaptive: bool, safety: float
         raise SceneError("materials.density", 0.0, "the explicit integrator needs mass and rotary "
                          "inertia at every free node: a positive density (or mass_per_length)")
     bound = ElementBound(model)
-    K = element_stiffness(model)
+    K = _stiffness_kinds(model, 0.0)
     inertia = model.rotary_inertia.copy()
     if scale_rotary_inertia:
         # the step the translations would allow with the rotations held (C48) sets how fast the
@@ -201,15 +261,15 @@ def explicit_plan(model: CosseratModel, dt: float, adaptive: bool, safety: float
                          "snap loads) or adaptive = true")
     # bent elements stiffen: the step shrinks with the largest rotation in the structure (C50)
     inv_sqrt = bound.inverse_sqrt_mass(inertia)
-    ratio = np.array([float(np.max(bound.largest(K if a == 0.0 else element_stiffness(model, a),
+    ratio = np.array([float(np.max(bound.largest(K if a == 0.0 else _stiffness_kinds(model, a),
                                                  inv_sqrt) / lam)) for a in ANGLES])
     factor = 1.0 / np.sqrt(np.maximum(1.0, np.maximum.accumulate(ratio)))
     scale = float((inertia / model.rotary_inertia).max()) if model.n_rot else 1.0
     return ExplicitRodPlan(h, stable, inertia, scale, (ANGLES.copy(), factor))
 
 
-def _raised_inertia(model: CosseratModel, bound: ElementBound, K: FloatArray,
-                    target: FloatArray) -> FloatArray:
+def _raised_inertia(model: CosseratModel, bound: ElementBound,
+                    K: tuple[FloatArray, NDArray[np.intp]], target: FloatArray) -> FloatArray:
     """(C49): rotary inertia (R, 3) raised isotropically, never below the model's own, until
     every element's bound is at most ``target`` (E,) [rad^2/s^2].
 
