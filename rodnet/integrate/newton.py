@@ -57,7 +57,9 @@ class NewtonOptions:
     restrain: bool = True
     """A correction that turns nodes by more than ``max_rotation`` is solved again with those
     nodes' rotations restrained (:func:`_restrained`), so that the rest of the correction
-    answers the shorter turns, before the rotations left too long are cut."""
+    answers the shorter turns, before the rotations left too long are cut; and a step whose
+    rotations were cut is not taken as the watchdog's free step. False: rotations are only
+    cut, and any full step may be the free one."""
 
 
 @dataclass
@@ -426,7 +428,7 @@ def _next(p: NewtonProblem, solver: LinearSolver, here: _Point, options: NewtonO
     trial = _point(p, here.u + here.step, here)
     if watch is None and _decreases(trial, here, 1.0, options, solver, w):
         return trial, None, True, watched
-    cut = here.du is not None and not np.array_equal(here.step, here.du)   # rotations cut
+    cut = options.restrain and here.du is not None and not np.array_equal(here.step, here.du)
     if watch is None and free and not cut and math.isfinite(trial.norm):
         return trial, here, free, 0                    # the watchdog's free step
     if watch is not None and _decreases(trial, watch, 1.0, options):
