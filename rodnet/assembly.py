@@ -302,6 +302,14 @@ def add_diagonal(matrix: IterationMatrix, shift: FloatArray) -> IterationMatrix:
         out = matrix.copy()
         out[np.diag_indices_from(out)] += shift
         return out
+    rows = np.repeat(np.arange(matrix.shape[0]), np.diff(matrix.indptr))
+    on_diagonal = matrix.indices == rows
+    if np.count_nonzero(on_diagonal) == matrix.shape[0]:
+        # every diagonal entry is in the pattern: the same pattern (a fixed-pattern LU of it
+        # is reused)
+        data = matrix.data.copy()
+        data[on_diagonal] += shift[rows[on_diagonal]]
+        return sp.csr_matrix((data, matrix.indices, matrix.indptr), shape=matrix.shape)
     return (matrix + sp.diags(shift)).tocsr()
 
 

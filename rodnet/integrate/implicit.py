@@ -23,7 +23,7 @@ c = (1 - alpha_f) / (1 - alpha_m). The consistent start is a0 = vd0 = -M^-1 g(q0
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Callable
 
 import numpy as np
@@ -278,10 +278,13 @@ class Scheme:
             _, q_e, _, dq_e = p.unpacked(u)
             p.mixed.accept(dq_e, q_e)
 
+        def restraint(du: FloatArray) -> FloatArray | None:
+            return rotation_overshoot(du, triples, self.options.max_rotation / d)
+
         weights = np.full(len(free_trans), d / length)
         weights[reduced_rot] = d
         problem = NewtonProblem(p.evaluate, shorten, small, p.merit, weights, accept, active_set,
-                                s.dof_mass[free], length)
+                                s.dof_mass[free], length, restraint)
         rot = s.rotation_dofs()
         # a start that turns a node by more than the rotation cap lies beyond where the
         # exponential map is one-to-one near the solution: left out (the last start turns least)
@@ -293,6 +296,14 @@ class Scheme:
             result = newton(problem, u0, scale, self.solver, self.options, self.history)
             if result.converged:
                 break
+        if not result.converged and self.options.restrain:
+            # the restrained corrections follow another path, which can end in a valley the
+            # plain cut avoids (backward Euler at a fixed 2 ms on the pinned reference net)
+            plain = newton(problem, starts[0], scale, self.solver,
+                           replace(self.options, restrain=False), self.history)
+            plain.iterations += result.iterations
+            plain.factorizations += result.factorizations
+            result = plain
         return p.end_state(result.u), result
 
     def _rotation_triples(self) -> NDArray[np.int64]:
@@ -616,6 +627,24 @@ def cap_rotations(du: FloatArray, rotations: NDArray[np.int64], triples: NDArray
         length = np.sqrt(np.einsum("ij,ij->i", vectors, vectors))
         factor = np.minimum(1.0, max_rotation / np.maximum(length, 1e-300))
         out[triples] = vectors * factor[:, None]
+    return out
+
+
+def rotation_overshoot(du: FloatArray, triples: NDArray[np.int64],
+                       max_rotation: float) -> FloatArray | None:
+    """For every DOF of a rotation node (its positions ``triples`` (F, 3) in ``du``) that
+    ``du`` turns by ``turn > max_rotation``, ``turn / max_rotation - 1``, zero elsewhere (n,);
+    None when no node turns that far (Newton's restrained correction,
+    :func:`rodnet.integrate.newton._restrained`)."""
+    if not len(triples):
+        return None
+    vectors = du[triples]
+    turn = np.sqrt(np.einsum("ij,ij->i", vectors, vectors))
+    over = turn > max_rotation
+    if not over.any():
+        return None
+    out = np.zeros_like(du)
+    out[triples[over]] = (turn[over] / max_rotation - 1.0)[:, None]
     return out
 
 

@@ -54,6 +54,12 @@ class NewtonOptions:
     """The smallest step fraction the line search tries before the solve fails."""
     armijo: float = 1e-4
     """Sufficient decrease of the merit function per unit of its slope."""
+    restrain: bool = True
+    """A correction that turns nodes by more than ``max_rotation`` is solved again with those
+    nodes' rotations restrained (:func:`_restrained`), so that the rest of the correction
+    answers the shorter turns, before the rotations left too long are cut; and a step whose
+    rotations were cut is not taken as the watchdog's free step. False: rotations are only
+    cut, and any full step may be the free one."""
 
 
 @dataclass
@@ -215,6 +221,10 @@ class NewtonProblem:
         Positive masses of the unknowns, for the Levenberg-Marquardt shift.
     length : float
         The structure's size [m] (the reach of the first shifted step).
+    restraint : callable, optional
+        ``restraint(du) -> (n,) float or None``: for every DOF of a node that ``du`` turns by
+        ``turn`` > ``max_rotation``, ``turn / max_rotation - 1``, zero elsewhere; None when no
+        node turns that far (see :func:`_restrained`).
     """
 
     evaluate: Evaluate
@@ -226,14 +236,17 @@ class NewtonProblem:
     active_set: Callable[[FloatArray], Any] | None = None
     metric: FloatArray | None = None
     length: float = 1.0
+    restraint: Callable[[FloatArray], FloatArray | None] | None = None
 
 
 def newton(problem: NewtonProblem, u0: FloatArray, scale: float, solver: LinearSolver,
            options: NewtonOptions, history: list[float] | None = None) -> NewtonResult:
     """Solve ``r(u) = 0`` by Newton's method, globalised for minimisation.
 
-    Every iteration takes the correction ``du = -S^-1 r`` of the exact iteration matrix ``S``
-    (rotations cut to ``max_rotation`` node by node). Steps are judged by a merit ``phi``:
+    Every iteration takes the correction ``du = -S^-1 r`` of the exact iteration matrix ``S``;
+    where it turns nodes by more than ``max_rotation`` it is solved again with those rotations
+    restrained (``restrain``, :func:`_restrained`), and rotations still too long are cut to
+    ``max_rotation`` node by node. Steps are judged by a merit ``phi``:
     the step's incremental potential where the system has one (its gradient is the residual up
     to velocity terms such as gyroscopic moments), else ``|r|^2 / 2``. A trial ``u + a du``
     decreases ``phi`` sufficiently when ``phi(u + a du) <= phi(u) + armijo a slope`` (Armijo;
@@ -243,7 +256,8 @@ def newton(problem: NewtonProblem, u0: FloatArray, scale: float, solver: LinearS
     (Deuflhard's natural monotonicity test).
 
     Watchdog (Chamberlain, Powell, Lemarechal and Pedersen 1982): a full step that does not
-    decrease ``phi`` is taken anyway, and within :data:`WATCHDOG_STEPS` further full steps,
+    decrease ``phi`` is taken anyway (unless rotations were cut in it: that step is no longer
+    Newton's, and its other parts answer turns it does not make), and within :data:`WATCHDOG_STEPS` further full steps,
     each decreasing ``phi`` from where it starts, ``phi`` must fall below the point before the
     free step; otherwise the iteration returns there and backtracks (``a = 1/2, ..., 1/64``).
     A stiff thread turned by a large rotation is stretched by the linearised step (``phi`` and
@@ -281,7 +295,7 @@ def newton(problem: NewtonProblem, u0: FloatArray, scale: float, solver: LinearS
         return done(here, True)
     if p.on_accept is not None:   # the start is the first iterate: its matrix is exact
         p.on_accept(here.u)
-    if not _direction(p, solver, here, "exact"):
+    if not _direction(p, solver, here, "exact", options):
         if not here.potential:
             return done(here, False, "the iteration matrix cannot be factorised", True)
         here.du = None   # a singular matrix (a slack cable at rest): a shifted step first
@@ -319,7 +333,7 @@ def newton(problem: NewtonProblem, u0: FloatArray, scale: float, solver: LinearS
                  and _length(here.r) <= 0.3 * _length(previous.r)
                  and p.active_set(here.u) == p.active_set(previous.u))
         if not (reuse and _kept_direction(p, solver, here)) and \
-                not _direction(p, solver, here, "exact"):
+                not _direction(p, solver, here, "exact", options):
             if not here.potential:
                 return done(here, False, "the iteration matrix cannot be factorised", True)
             here.du = None
@@ -374,12 +388,16 @@ def _point(p: NewtonProblem, u: FloatArray, near: _Point | None) -> _Point:
     return _Point(u, r, norm, 0.5 * _dot(r, r) if math.isfinite(norm) else math.inf, False)
 
 
-def _direction(p: NewtonProblem, solver: LinearSolver, at: _Point, matrix: str) -> bool:
-    """Factorise the ``matrix`` ("exact" or "convex") at ``at`` and store its correction, the
-    shortened step and the merit's slope along it; False when it cannot be factorised."""
+def _direction(p: NewtonProblem, solver: LinearSolver, at: _Point, matrix: str,
+               options: NewtonOptions) -> bool:
+    """Factorise the ``matrix`` ("exact" or "convex") at ``at`` and store its correction
+    (restrained where it turns nodes too far, :func:`_restrained`), the shortened step and the
+    merit's slope along it; False when it cannot be factorised."""
     _, S = p.evaluate(at.u, matrix)
     curved = at.potential and matrix == "exact"
-    original = _copy(S) if curved else None   # a band matrix is factorised in place
+    restrain = options.restrain and p.restraint is not None
+    # a band matrix is factorised in place
+    original = _copy(S) if curved or restrain else S
     try:
         solver.factorize(S)
     except (FloatingPointError, RuntimeError):
@@ -390,7 +408,9 @@ def _direction(p: NewtonProblem, solver: LinearSolver, at: _Point, matrix: str) 
     if curved and _dot(du, original.dot(du)) <= 0.0:   # type: ignore[union-attr]
         # the potential curves down along du: an indefinite matrix, whose correction heads
         # for a saddle or a maximum; the convexified matrix's heads downhill
-        return _direction(p, solver, at, "convex")
+        return _direction(p, solver, at, "convex", options)
+    if restrain:
+        du = _restrained(p, solver, original, at.r, du)
     at.du = du
     at.step = du if p.shorten is None else p.shorten(du)
     # the slope of |r|^2 / 2 along an exact Newton step is -|r|^2 (the step scales it)
@@ -408,7 +428,8 @@ def _next(p: NewtonProblem, solver: LinearSolver, here: _Point, options: NewtonO
     trial = _point(p, here.u + here.step, here)
     if watch is None and _decreases(trial, here, 1.0, options, solver, w):
         return trial, None, True, watched
-    if watch is None and free and math.isfinite(trial.norm):
+    cut = options.restrain and here.du is not None and not np.array_equal(here.step, here.du)
+    if watch is None and free and not cut and math.isfinite(trial.norm):
         return trial, here, free, 0                    # the watchdog's free step
     if watch is not None and _decreases(trial, watch, 1.0, options):
         return trial, None, True, watched              # the free step paid off
@@ -423,9 +444,37 @@ def _next(p: NewtonProblem, solver: LinearSolver, here: _Point, options: NewtonO
         if origin.slope < 0.0 else None
     if nxt is None and origin.potential:
         nxt = _levenberg(p, solver, origin, options, shift)
-    if nxt is None and _direction(p, solver, origin, "convex") and origin.slope < 0.0:
+    if nxt is None and _direction(p, solver, origin, "convex", options) and origin.slope < 0.0:
         nxt = _backtrack(p, origin, options.min_step, options, None, w)
     return nxt, None, free, watched
+
+
+def _restrained(p: NewtonProblem, solver: LinearSolver, S: IterationMatrix, r: FloatArray,
+                du: FloatArray) -> FloatArray:
+    """The correction solved again with the rotations it turns too far restrained: the
+    diagonal of ``S`` at every DOF of a node that ``du`` turns by ``turn > max_rotation`` is
+    raised by ``(turn / max_rotation - 1) |S_ii|`` (``p.restraint``), a Levenberg-Marquardt
+    shift on those nodes alone; ``du`` itself when no node turns that far, or when the
+    restrained matrix cannot be factorised or its correction does not head downhill.
+
+    Where a node of little stiffness against turning (the end of a slack, crumpled thread
+    element, the section of a thread about its own axis) would turn by radians, cutting its
+    rotation alone leaves the rest of the correction answering a turn that is not made (the
+    neighbouring positions are moved for it), and the cut step raises the residual; the
+    restrained correction is consistent with the shorter turn. The factorisation left in
+    ``solver`` is the restrained one (used only by the polishing of a converged iterate, which
+    needs a correction only near the solution, where nothing is restrained)."""
+    factor = p.restraint(du) if p.restraint is not None else None
+    if factor is None:
+        return du
+    try:
+        solver.factorize(add_diagonal(S, factor * np.abs(diagonal(S))))
+    except (FloatingPointError, RuntimeError):
+        return du
+    restrained = -solver.solve(r)
+    if not np.isfinite(restrained).all() or _dot(r, restrained) >= 0.0:
+        return du
+    return restrained
 
 
 def _polished(p: NewtonProblem, solver: LinearSolver, at: _Point) -> _Point:
