@@ -19,8 +19,8 @@ from rodnet.integrate.frames import ProgressSink, StepStats
 from rodnet.integrate.system import FrameSink, System
 from rodnet.kernels.contact_compiled import contact_scratch
 from rodnet.kernels import threads
-from rodnet.kernels.explicit import (Bodies, ExplicitProblem, Marched, Scratch, StepControl, march,
-                                     march_nodes, march_parallel, node_forces_only)
+from rodnet.kernels.explicit import (Bodies, ExplicitProblem, Marched, Scratch, StepControl,
+                                     march_for, march_nodes, node_forces_only)
 from rodnet.state import State
 
 
@@ -94,7 +94,7 @@ def integrate_explicit(system: System, state: State, times: NDArray[np.float64],
     work = scratch(problem)
     bodies = _bodies(state)
     x, quat, v, W = state.q.x, state.q.quat, state.velocities, state.spin
-    loop = march_parallel if threads.current() > 1 else march
+    loop = march_for(problem, threads.current() > 1)
     rods = problem.rods.rest_length.shape[0] > 0
     nodes_only = node_forces_only(problem, control)   # the fused loop of nodes-only problems
     stats = StepStats() if stats is None else stats  # filled in place: kept if the run fails

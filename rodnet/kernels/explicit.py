@@ -23,8 +23,10 @@ reach (E5), and to 0.9 times the travel-limited step when a point near a body wo
 than its travel limit (E3); the step is then redone from the same state (fixed steps divide the
 rest of the interval anew).
 
-:func:`march` and :func:`march_parallel` are the same loop (:func:`_march`) compiled without and
-with numba's parallel loops over elements and nodes; :func:`march_nodes` is the loop of problems
+:func:`march` and :func:`march_parallel` are the same loop (:func:`_loop`) compiled without and
+with numba's parallel loops over elements and nodes, :func:`march_free` and
+:func:`march_parallel_free` the same without contact, for problems without bodies
+(:func:`march_for` picks one); :func:`march_nodes` is the loop of problems
 with position nodes only (the lumped model, cable and Kirchhoff threads without bodies), fused
 and on one thread (measured on the reference deployment, validation/benchmarks/results/peers.md);
 :func:`forces` evaluates the forces alone (RK45, tests).
@@ -300,84 +302,94 @@ def _whole_steps(t_start, t_end, step):  # pragma: no cover - compiled
     return n, (t_end - t_start) / n
 
 
-@numba.njit(inline="always")
-def _march(x, quat, v, W, bodies, t0, t_end, n0, h0, p, control,
-           s):  # pragma: no cover - compiled
-    """The loop of :func:`march` (see the module docstring)."""
-    c, cs, bm = p.contact, s.contact, p.body_mass
-    has_bodies = c.kind.shape[0] > 0
-    peak, phi_max, h_min, h_max, work = 0.0, 0.0, np.inf, 0.0, 0.0
-    steps, evaluations = 0, 0
-    node_speed = largest_speed(v) if has_bodies else 0.0
-    fixed = not control.rotation_controlled
-    base, t = h0, t0
-    t_seg, k, n_seg, h_seg = t0, 0, n0, h0          # fixed steps: t = t_seg + k h_seg
-    while True:
-        if fixed:
-            if k >= n_seg:
-                break
-            t = t_seg + k * h_seg
-        elif not t < t_end:
-            break
-        step_peak, phi = _forces(t, x, quat, v, W, p, s)
-        evaluations += 1
-        if fixed:
-            h_full, h, last = h_seg, h_seg, False
-        else:
-            h_full = base * np.interp(phi, control.angles, control.factor)
-            remaining = t_end - t
-            last = h_full >= remaining * (1.0 - 1e-9)
-            h = remaining if last else h_full
-        power = 0.0
-        if has_bodies and select_bodies(h, node_speed, bodies.velocity, bodies.omega,
-                                        c.bound_radius, cs.travelled, cs.clearance, cs.active,
-                                        cs.body_force, cs.body_moment):
-            new_base = base
-            if h > control.near_dt * (1.0 + 1e-12):   # (E5): contact needs the shorter step
-                new_base = control.near_dt
-            else:
-                power, _, _, allowed = accumulate_contact(
-                    x, v, s.f_node, h, c, bodies.position, bodies.rotation, bodies.velocity,
-                    bodies.omega, cs)
-                if allowed < h:                       # (E3): a point would jump too far
-                    new_base = min(base, 0.9 * allowed)
-                    if new_base < control.min_dt:
-                        return Marched(2, t, steps, evaluations, h_min, h_max, peak, phi_max,
-                                       work)
-            if new_base != base:                      # redo the step from the same state
-                forget_clearance(cs.active, cs.clearance)
-                base = new_base
-                if fixed:
-                    t_seg, k = t, 0
-                    n_seg, h_seg = _whole_steps(t, t_end, base)
-                continue
-        peak = max(peak, step_peak)
-        phi_max = max(phi_max, phi)
-        h_min = min(h_min, h_full)
-        h_max = max(h_max, h_full)
-        work += h * power
-        finite = _update(x, quat, v, W, s.f_node, s.m_node, p.nodes, p.rotations, h)
-        if has_bodies:
-            node_speed = largest_speed(v)
-            advance_bodies(h, cs.body_force, cs.body_moment, bm.inv_mass, bm.inertia,
-                           bm.inv_inertia, bm.gravity, bodies.position, bodies.velocity,
-                           bodies.quaternion, bodies.rotation, bodies.momentum, bodies.omega,
-                           s.body_work)
-            for b in range(cs.travelled.shape[0]):
-                cs.travelled[b] += h * (2.0 * node_speed + body_speed(
-                    bodies.velocity, bodies.omega, c.bound_radius, b))
-        steps += 1
-        if fixed:
-            k += 1
-        else:
-            t = t_end if last else t + h
-        if not finite:
+def _loop(with_bodies: bool):  # type: ignore[no-untyped-def]
+    """The loop of :func:`march` (see the module docstring), compiled inline into each of the
+    entry points; ``with_bodies`` False leaves the contact and the bodies' step out (numba drops
+    the branches on a constant), which saves a third of compiling the loop of rods
+    (validation/benchmarks/results/cold_start.md)."""
+
+    @numba.njit(inline="always")
+    def march_loop(x, quat, v, W, bodies, t0, t_end, n0, h0, p, control,
+                   s):  # pragma: no cover - compiled
+        c, cs, bm = p.contact, s.contact, p.body_mass
+        has_bodies = c.kind.shape[0] > 0
+        peak, phi_max, h_min, h_max, work = 0.0, 0.0, np.inf, 0.0, 0.0
+        steps, evaluations = 0, 0
+        node_speed = largest_speed(v) if with_bodies and has_bodies else 0.0
+        fixed = not control.rotation_controlled
+        base, t = h0, t0
+        t_seg, k, n_seg, h_seg = t0, 0, n0, h0          # fixed steps: t = t_seg + k h_seg
+        while True:
             if fixed:
+                if k >= n_seg:
+                    break
                 t = t_seg + k * h_seg
-            return Marched(1, t, steps, evaluations, h_min, h_max, peak, phi_max, work)
-    if fixed:
-        t = t_end
-    return Marched(0, t, steps, evaluations, h_min, h_max, peak, phi_max, work)
+            elif not t < t_end:
+                break
+            step_peak, phi = _forces(t, x, quat, v, W, p, s)
+            evaluations += 1
+            if fixed:
+                h_full, h, last = h_seg, h_seg, False
+            else:
+                h_full = base * np.interp(phi, control.angles, control.factor)
+                remaining = t_end - t
+                last = h_full >= remaining * (1.0 - 1e-9)
+                h = remaining if last else h_full
+            power = 0.0
+            if with_bodies and has_bodies and select_bodies(
+                    h, node_speed, bodies.velocity, bodies.omega, c.bound_radius, cs.travelled,
+                    cs.clearance, cs.active, cs.body_force, cs.body_moment):
+                new_base = base
+                if h > control.near_dt * (1.0 + 1e-12):   # (E5): contact needs the shorter step
+                    new_base = control.near_dt
+                else:
+                    power, _, _, allowed = accumulate_contact(
+                        x, v, s.f_node, h, c, bodies.position, bodies.rotation, bodies.velocity,
+                        bodies.omega, cs)
+                    if allowed < h:                       # (E3): a point would jump too far
+                        new_base = min(base, 0.9 * allowed)
+                        if new_base < control.min_dt:
+                            return Marched(2, t, steps, evaluations, h_min, h_max, peak, phi_max,
+                                           work)
+                if new_base != base:                      # redo the step from the same state
+                    forget_clearance(cs.active, cs.clearance)
+                    base = new_base
+                    if fixed:
+                        t_seg, k = t, 0
+                        n_seg, h_seg = _whole_steps(t, t_end, base)
+                    continue
+            peak = max(peak, step_peak)
+            phi_max = max(phi_max, phi)
+            h_min = min(h_min, h_full)
+            h_max = max(h_max, h_full)
+            work += h * power
+            finite = _update(x, quat, v, W, s.f_node, s.m_node, p.nodes, p.rotations, h)
+            if with_bodies and has_bodies:
+                node_speed = largest_speed(v)
+                advance_bodies(h, cs.body_force, cs.body_moment, bm.inv_mass, bm.inertia,
+                               bm.inv_inertia, bm.gravity, bodies.position, bodies.velocity,
+                               bodies.quaternion, bodies.rotation, bodies.momentum, bodies.omega,
+                               s.body_work)
+                for b in range(cs.travelled.shape[0]):
+                    cs.travelled[b] += h * (2.0 * node_speed + body_speed(
+                        bodies.velocity, bodies.omega, c.bound_radius, b))
+            steps += 1
+            if fixed:
+                k += 1
+            else:
+                t = t_end if last else t + h
+            if not finite:
+                if fixed:
+                    t = t_seg + k * h_seg
+                return Marched(1, t, steps, evaluations, h_min, h_max, peak, phi_max, work)
+        if fixed:
+            t = t_end
+        return Marched(0, t, steps, evaluations, h_min, h_max, peak, phi_max, work)
+
+    return march_loop
+
+
+_march, _march_free = _loop(True), _loop(False)
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -395,6 +407,29 @@ def march_parallel(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control,
                    scratch):  # pragma: no cover - compiled
     """:func:`march` with the loops over rod elements and nodes on numba's threads."""
     return _march(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control, scratch)
+
+
+@numba.njit(cache=True)
+def march_free(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control,
+               scratch):  # pragma: no cover - compiled
+    """:func:`march` for a problem without rigid bodies (compiled without contact)."""
+    return _march_free(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control, scratch)
+
+
+@numba.njit(cache=True, parallel=True)
+def march_parallel_free(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control,
+                        scratch):  # pragma: no cover - compiled
+    """:func:`march_parallel` for a problem without rigid bodies (compiled without contact)."""
+    return _march_free(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control, scratch)
+
+
+def march_for(problem: ExplicitProblem, parallel: bool):  # type: ignore[no-untyped-def]
+    """The compiled loop that runs ``problem``: :func:`march` or, ``parallel``,
+    :func:`march_parallel`, each without contact when the problem has no bodies (the same
+    arithmetic: a problem without bodies never enters the branches left out)."""
+    if problem.contact.kind.shape[0] > 0:
+        return march_parallel if parallel else march
+    return march_parallel_free if parallel else march_free
 
 
 def node_forces_only(problem: ExplicitProblem, control: StepControl) -> bool:
