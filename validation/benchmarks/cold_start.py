@@ -11,25 +11,29 @@ holds numpy, scipy, numba, pyvista and the rest):
   kernels); numba's kernel files (``*.nbi``, ``*.nbc``) are deleted after installing.
 
 ``NUMBA_CACHE_DIR`` is removed from the environment, so numba caches beside the sources as it
-does for a user. Then ``rodnet demo -o OUT`` (the reference deployment, lumped model, 3 s, with
-the VTK frames and the two pictures) runs twice in a child process: cold (the first run after
-installing) and warm. The child is the ``rodnet`` command's own entry point
-(``rodnet.cli.main``) with timers around it, read from the outside as wall times since the
-child was started and as CPU times (user + system) of the child and of its rendering process:
+does for a user. Then ``rodnet demo -o OUT`` (the reference deployment with Cosserat threads and
+the lumped reference, their VTK frames, pictures and movie; ``--set`` shortens it, e.g.
+``simulation.duration=0.1``: compiling does not depend on the duration) runs twice in a child
+process: cold (the first run after installing) and warm. The child is the ``rodnet`` command's
+own entry point (``rodnet.cli.main``) with timers around it, read from the outside as wall
+times since the child was started and as CPU times (user + system) of the child and of its
+subprocesses (rendering, and the lumped run where it runs in one). The phases are those of the
+first (Cosserat) run:
 
 - ``import``: ``import rodnet.cli`` done (interpreter start included);
-- ``first frame``: the first frame interval (0.01 s, 134 steps) computed: compiling or loading
-  the explicit loop, and the scene's set-up before it;
+- ``first frame``: the first frame interval (0.01 s) computed: compiling or loading the
+  explicit loop, and the scene's set-up before it;
 - ``run``: the simulation done (results written);
 - ``render``: the pictures' subprocess (``rodnet.viz.figures``: pyvista, VTK, matplotlib);
-- ``total``: the process ended.
+- ``total``: the process ended (both runs, their pictures, the comparison).
 
 The machine is shared: wall times grow with its load (the 1-minute load average is printed with
 each run); the CPU times are what the run itself cost. Writes ``results/cold_start.md``.
 
 Usage, from the repository root (VENV prepared as above)::
 
-    python validation/benchmarks/cold_start.py --venv VENV --rev main --rev HEAD
+    python validation/benchmarks/cold_start.py --venv VENV --rev main --rev HEAD \\
+        --set simulation.duration=0.1
 """
 
 from __future__ import annotations
@@ -53,7 +57,9 @@ marks = {}
 def mark(name):
     self = resource.getrusage(resource.RUSAGE_SELF)
     kids = resource.getrusage(resource.RUSAGE_CHILDREN)
-    marks[name] = (time.time(), self.ru_utime + self.ru_stime, kids.ru_utime + kids.ru_stime)
+    # the first of each: the Cosserat run's phases, not the lumped run's after it
+    marks.setdefault(name, (time.time(), self.ru_utime + self.ru_stime,
+                            kids.ru_utime + kids.ru_stime))
 import rodnet.cli
 mark("import")
 import rodnet.viz.figures as figures
@@ -128,14 +134,16 @@ def install(venv: Path, source: Path, mode: str) -> Path:
     return package
 
 
-def run_demo(venv: Path, out: Path) -> dict[str, tuple[float, float, float]]:
-    """One ``rodnet demo -o out`` in a child process: per phase, (wall s since the start, CPU s
-    of the child, CPU s of its subprocesses)."""
+def run_demo(venv: Path, out: Path, overrides: list[str] = []
+             ) -> dict[str, tuple[float, float, float]]:
+    """One ``rodnet demo -o out`` (with ``--set`` of each of ``overrides``) in a child process:
+    per phase, (wall s since the start, CPU s of the child, CPU s of its subprocesses)."""
     env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "PYTHONPATH")}
     marks_file = out.with_suffix(".json")
     start = time.time()
     done = subprocess.run([str(_python(venv)), "-c", DRIVER, str(marks_file), "demo", "-o",
-                           str(out), "--quiet"], env=env, cwd=out.parent, capture_output=True,
+                           str(out), "--quiet", *(a for o in overrides for a in ("--set", o))],
+                          env=env, cwd=out.parent, capture_output=True,
                           text=True)
     if done.returncode != 0:
         raise RuntimeError(f"rodnet demo failed: {done.stderr[-2000:]}")
@@ -143,7 +151,8 @@ def run_demo(venv: Path, out: Path) -> dict[str, tuple[float, float, float]]:
     return {k: (w - start, cpu, kids) for k, (w, cpu, kids) in marks.items()}
 
 
-def measure(venv: Path, revs: list[str], modes: list[str], work: Path) -> list[dict]:
+def measure(venv: Path, revs: list[str], modes: list[str], work: Path,
+            overrides: list[str] = []) -> list[dict]:
     rows = []
     for rev in revs:
         source = extract(rev, work / f"src-{len(rows)}")
@@ -153,9 +162,10 @@ def measure(venv: Path, revs: list[str], modes: list[str], work: Path) -> list[d
             package = install(venv, source, mode)
             for run in ("cold", "warm"):
                 load = os.getloadavg()[0]
-                marks = run_demo(venv, work / f"out-{commit}-{mode}-{run}")
+                marks = run_demo(venv, work / f"out-{commit}-{mode}-{run}", overrides)
                 kernels = len(list(package.rglob("*.nbi")))
                 row = {"rev": rev, "commit": commit, "mode": mode, "run": run, "load": load,
+                       "set": overrides,
                        "kernels": kernels, "marks": marks}
                 print(json.dumps(row), flush=True)
                 rows.append(row)
@@ -202,6 +212,9 @@ def main() -> None:
     parser.add_argument("--rev", action="append", required=True, help="git revision (repeat)")
     parser.add_argument("--mode", action="append", choices=("editable", "installed"),
                         help="kinds of install (default: both)")
+    parser.add_argument("--set", dest="overrides", action="append", default=[],
+                        metavar="KEY=VALUE", help="rodnet demo --set (repeatable), e.g. "
+                        "simulation.duration=0.1: compiling does not depend on the duration")
     parser.add_argument("--rows", type=Path, default=None,
                         help="JSON lines of earlier measurements to add to the table")
     parser.add_argument("-o", "--output", type=Path, default=HERE / "results" / "cold_start.md")
@@ -211,7 +224,7 @@ def main() -> None:
         rows = [json.loads(line) for line in args.rows.read_text().splitlines() if line.strip()]
     with tempfile.TemporaryDirectory(prefix="rodnet-cold-") as work:
         rows += measure(args.venv.resolve(), args.rev, args.mode or ["editable", "installed"],
-                        Path(work))
+                        Path(work), args.overrides)
     text = table(rows)
     print(text)
     args.output.parent.mkdir(parents=True, exist_ok=True)
