@@ -435,14 +435,14 @@ def march_parallel(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control,
     return _march(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control, scratch)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def march_free(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control,
                scratch):  # pragma: no cover - compiled
     """:func:`march` for a problem without rigid bodies (compiled without contact)."""
     return _march_free(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control, scratch)
 
 
-@numba.njit(cache=True, parallel=True)
+@numba.njit(cache=True, parallel=True, error_model="numpy")
 def march_parallel_free(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control,
                         scratch):  # pragma: no cover - compiled
     """:func:`march_parallel` for a problem without rigid bodies (compiled without contact)."""
