@@ -428,7 +428,8 @@ def _next(p: NewtonProblem, solver: LinearSolver, here: _Point, options: NewtonO
     trial = _point(p, here.u + here.step, here)
     if watch is None and _decreases(trial, here, 1.0, options, solver, w):
         return trial, None, True, watched
-    cut = options.restrain and here.du is not None and not np.array_equal(here.step, here.du)
+    cut = (options.restrain and p.restraint is not None and here.du is not None
+           and not np.array_equal(here.step, here.du))   # still cut after the restraint
     if watch is None and free and not cut and math.isfinite(trial.norm):
         return trial, here, free, 0                    # the watchdog's free step
     if watch is not None and _decreases(trial, watch, 1.0, options):
