@@ -236,6 +236,7 @@ def test_explicit_friction_cap_leaves_sliding_alone_and_limits_creep() -> None:
     assert (np.abs(capped[:, 0]) * dt * p.model.inv_mass <= 1e-7 * (1 + 1e-9)).all()
 
 
+@pytest.mark.slow
 def test_chain_pressed_on_a_box_is_stable_below_the_limit_and_not_above_the_exact_one() -> None:
     """The chain rests pressed into the box (gravity keeps every point in contact), so the
     contact springs act as linear springs: symplectic Euler is stable below the estimate and

@@ -206,6 +206,7 @@ def test_pvbatch_runs_the_script_and_saves_a_screenshot(tmp_path: Path, scene: s
 
 @pytest.mark.skipif(PARAVIEW is None or XVFB_RUN is None,
                     reason="the ParaView GUI and xvfb-run are not on PATH")
+@pytest.mark.slow
 def test_the_gui_runs_the_script_without_saving(tmp_path: Path) -> None:
     """``paraview --script``: the GUI runs the script's text without ``__file__``; it must set
     up the view from the path it was written in and save nothing."""

@@ -120,6 +120,7 @@ def test_cantilever_frequency_against_euler_bernoulli(tmp_path: Path) -> None:
     assert period == pytest.approx(expected, rel=0.01)
 
 
+@pytest.mark.slow
 def test_loaded_cantilever_follows_the_implicit_solution(tmp_path: Path) -> None:
     """Tip force and a global-axis tip moment ramped in, gravity and damping: the explicit run
     (supports, dead loads, moments in the body frame, weight) against generalized-alpha at a
@@ -158,7 +159,8 @@ def test_free_net_conserves_linear_momentum_and_loses_energy(tmp_path: Path) -> 
     assert np.all(a["tension"] >= 0.0)
 
 
-@pytest.mark.parametrize("knots", ["pinned", pytest.param("rigid", marks=pytest.mark.slow)])
+@pytest.mark.slow
+@pytest.mark.parametrize("knots", ["pinned", "rigid"])
 def test_net_against_the_implicit_rods_and_the_lumped_net(knots: str, tmp_path: Path) -> None:
     """Largest mouth area of the 5 x 5 net over 0.6 s (it peaks inside): explicit rods against
     generalized-alpha on the same rods (error-controlled: 1e-5 m on the root-mean-square of the
