@@ -395,7 +395,7 @@ def _direction(p: NewtonProblem, solver: LinearSolver, at: _Point, matrix: str,
     merit's slope along it; False when it cannot be factorised."""
     _, S = p.evaluate(at.u, matrix)
     curved = at.potential and matrix == "exact"
-    restrain = options.restrain and p.restraint is not None
+    restrain = _restrains(p, options)
     # a band matrix is factorised in place
     original = _copy(S) if curved or restrain else S
     try:
@@ -428,7 +428,7 @@ def _next(p: NewtonProblem, solver: LinearSolver, here: _Point, options: NewtonO
     trial = _point(p, here.u + here.step, here)
     if watch is None and _decreases(trial, here, 1.0, options, solver, w):
         return trial, None, True, watched
-    cut = (options.restrain and p.restraint is not None and here.du is not None
+    cut = (_restrains(p, options) and here.du is not None
            and not np.array_equal(here.step, here.du))   # still cut after the restraint
     if watch is None and free and not cut and math.isfinite(trial.norm):
         return trial, here, free, 0                    # the watchdog's free step
@@ -450,6 +450,12 @@ def _next(p: NewtonProblem, solver: LinearSolver, here: _Point, options: NewtonO
     return nxt, None, free, watched
 
 
+def _restrains(p: NewtonProblem, options: NewtonOptions) -> bool:
+    """Whether corrections that turn nodes too far are solved again restrained (the option is
+    on and the problem says which nodes turn too far)."""
+    return options.restrain and p.restraint is not None
+
+
 def _restrained(p: NewtonProblem, solver: LinearSolver, S: IterationMatrix, r: FloatArray,
                 du: FloatArray) -> FloatArray:
     """The correction solved again with the rotations it turns too far restrained: the
@@ -465,7 +471,7 @@ def _restrained(p: NewtonProblem, solver: LinearSolver, S: IterationMatrix, r: F
     restrained correction is consistent with the shorter turn. The factorisation left in
     ``solver`` is the restrained one (used only by the polishing of a converged iterate, which
     needs a correction only near the solution, where nothing is restrained)."""
-    factor = p.restraint(du) if p.restraint is not None else None
+    factor = p.restraint(du)   # called only where _restrains(p, options)
     if factor is None:
         return du
     try:
