@@ -14,12 +14,18 @@ from rodnet.scene import scene_from_toml
 from tests.conftest import small_net_toml
 
 
-def test_rotation_update_is_the_exponential_map_on_both_sides_of_the_series() -> None:
+def _pinned_rod_net():  # type: ignore[no-untyped-def]
+    """The explicit problem, step control and start state of the 5 x 5 net of Cosserat threads
+    (two elements each, pinned knots)."""
     scene = scene_from_toml(small_net_toml(n=2), ["model.type=cosserat", "model.knots=pinned",
                                                   "simulation.integrator=explicit"])
     p = prepare(scene)
     problem, control = p.system.explicit_problem()
-    st = p.state
+    return problem, control, p.state
+
+
+def test_rotation_update_is_the_exponential_map_on_both_sides_of_the_series() -> None:
+    problem, control, st = _pinned_rod_net()
     rng = np.random.default_rng(3)
     x, quat, v = st.q.x.copy(), st.q.quat.copy(), st.velocities.copy()
     r = len(quat)
@@ -43,11 +49,7 @@ def test_rotation_update_is_the_exponential_map_on_both_sides_of_the_series() ->
 
 
 def test_a_non_finite_spin_fails_the_step() -> None:
-    scene = scene_from_toml(small_net_toml(n=2), ["model.type=cosserat", "model.knots=pinned",
-                                                  "simulation.integrator=explicit"])
-    p = prepare(scene)
-    problem, control = p.system.explicit_problem()
-    st = p.state
+    problem, control, st = _pinned_rod_net()
     x, quat, v, W = st.q.x.copy(), st.q.quat.copy(), st.velocities.copy(), st.spin.copy()
     W[1] = np.nan
     done = kx.march(x, quat, v, W, _bodies(st), 0.0, 1e-6, 1, 1.0, problem, control,
