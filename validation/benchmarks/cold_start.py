@@ -107,6 +107,13 @@ def extract(rev: str, into: Path) -> Path:
     return into
 
 
+def read_rows(path: Path | None) -> list[dict]:
+    """Earlier measurements: the JSON lines of ``path`` (none without a path)."""
+    if path is None:
+        return []
+    return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+
+
 def install(venv: Path, source: Path, mode: str) -> Path:
     """Install ``source`` into ``venv`` (``editable`` or ``installed``) without dependencies and
     remove what a fresh install would not have; returns the package folder that runs."""
@@ -219,9 +226,7 @@ def main() -> None:
                         help="JSON lines of earlier measurements to add to the table")
     parser.add_argument("-o", "--output", type=Path, default=HERE / "results" / "cold_start.md")
     args = parser.parse_args()
-    rows = []
-    if args.rows is not None:
-        rows = [json.loads(line) for line in args.rows.read_text().splitlines() if line.strip()]
+    rows = read_rows(args.rows)
     with tempfile.TemporaryDirectory(prefix="rodnet-cold-") as work:
         rows += measure(args.venv.resolve(), args.rev, args.mode or ["editable", "installed"],
                         Path(work), args.overrides)

@@ -35,17 +35,13 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
+sys.path.insert(0, str(HERE))
+from cold_start import extract, read_rows  # noqa: E402  (git archive of a revision)
 
 
-def extract(rev: str, into: Path) -> Path:
+def tree_of(rev: str, into: Path) -> Path:
     """The tree of ``rev`` (a git revision; ``.`` this working tree) under ``into``."""
-    if rev == ".":
-        return ROOT
-    into.mkdir(parents=True)
-    archive = subprocess.run(["git", "-C", str(ROOT), "archive", rev], check=True,
-                             capture_output=True).stdout
-    subprocess.run(["tar", "-x", "-C", str(into)], input=archive, check=True)
-    return into
+    return ROOT if rev == "." else extract(rev, into)
 
 
 def children_cpu() -> float:
@@ -106,12 +102,10 @@ def main() -> None:
                         help="JSON lines of earlier measurements to add to the table")
     parser.add_argument("-o", "--output", type=Path, default=HERE / "results" / "demo_speed.md")
     args = parser.parse_args()
-    rows = []
-    if args.rows is not None:
-        rows = [json.loads(line) for line in args.rows.read_text().splitlines() if line.strip()]
+    rows = read_rows(args.rows)
     with tempfile.TemporaryDirectory(prefix="rodnet-demo-speed-") as work:
         for k, rev in enumerate(args.rev):
-            tree = extract(rev, Path(work) / f"src-{k}")
+            tree = tree_of(rev, Path(work) / f"src-{k}")
             commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short",
                                      "HEAD" if rev == "." else rev], check=True,
                                     capture_output=True, text=True).stdout.strip()
