@@ -51,9 +51,10 @@ def test_bounds_of_kinds_equal_every_element_solved_alone() -> None:
                                       reference_strain=model.reference_strain[e:e + 1],
                                       stiffness=model.stiffness[e:e + 1], tau=model.tau[e:e + 1])
             x, q = ce.stress_free_element_states(one, angle)
-            _, K, _ = ce.internal_force_and_tangents(one.rest_length, one.reference_strain,
-                                                     one.stiffness, one.tau, x, q,
-                                                     np.zeros((1, 12)), False, one.kink_strain)
+            _, K, _ = ce.internal_force_and_tangents_numpy(one.rest_length, one.reference_strain,
+                                                           one.stiffness, one.tau, x, q,
+                                                           np.zeros((1, 12)), False,
+                                                           one.kink_strain)
             alone.append(0.5 * (K[0] + K[0].T))
         alone = np.array(alone)
         np.testing.assert_array_equal(ce.element_stiffness(model, angle), alone)

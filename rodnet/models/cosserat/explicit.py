@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 
 from rodnet.errors import SceneError
 from rodnet.kernels import so3
-from rodnet.kernels.cosserat_compiled import internal_force_and_tangents
+from rodnet.kernels.cosserat import internal_force_and_tangents_numpy
 from rodnet.kernels.explicit import StepControl
 from rodnet.models.cosserat.model import CosseratModel
 from rodnet.models.lumped import damped_limit
@@ -105,9 +105,11 @@ def _stiffness_kinds(model: CosseratModel, angle: float) -> tuple[FloatArray, ND
     kinds, kind = _distinct_rows(sections)
     rest_length, reference_strain = kinds[:, 0], kinds[:, 1:7]
     x, q = _stress_free_states(rest_length, reference_strain, angle)
-    _, K, _ = internal_force_and_tangents(rest_length, reference_strain, kinds[:, 7:13],
-                                          kinds[:, 13], x, q, np.zeros((len(x), 12)), False,
-                                          model.kink_strain)
+    # NumPy: a net has few kinds, and compiling the tangent kernel would cost a fresh install
+    # about 30 CPU s before its first explicit step
+    _, K, _ = internal_force_and_tangents_numpy(rest_length, reference_strain, kinds[:, 7:13],
+                                                kinds[:, 13], x, q, np.zeros((len(x), 12)),
+                                                False, model.kink_strain)
     return 0.5 * (K + K.transpose(0, 2, 1)), kind
 
 
