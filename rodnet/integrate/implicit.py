@@ -178,6 +178,8 @@ class Scheme:
                                             self.history).step(state, t, h)
         euler_result.iterations += result.iterations
         euler_result.factorizations += result.factorizations
+        euler_result.discarded_iterations += result.discarded_iterations
+        euler_result.discarded_factorizations += result.discarded_factorizations
         if not euler_result.converged:
             return new, result
         euler.first_order = True
@@ -292,10 +294,15 @@ class Scheme:
                  for u0 in p.starts]
         starts = [u0 for u0, turn in zip(p.starts, turns)
                   if turn <= self.options.max_rotation] or [p.starts[int(np.argmin(turns))]]
-        for u0 in starts:
+        discarded = [0, 0]   # iterations and factorisations of the starts that failed
+        for i, u0 in enumerate(starts):
+            if i:
+                discarded = [discarded[0] + result.iterations,
+                             discarded[1] + result.factorizations]
             result = newton(problem, u0, scale, self.solver, self.options, self.history)
             if result.converged:
                 break
+        result.discarded_iterations, result.discarded_factorizations = discarded
         if not result.converged and self.options.restrain:
             # the restrained corrections follow another path, which can end in a valley the
             # plain cut avoids (backward Euler at a fixed 2 ms on the pinned reference net)
@@ -303,6 +310,8 @@ class Scheme:
                            replace(self.options, restrain=False), self.history)
             plain.iterations += result.iterations
             plain.factorizations += result.factorizations
+            plain.discarded_iterations += result.discarded_iterations
+            plain.discarded_factorizations += result.discarded_factorizations
             result = plain
         return p.end_state(result.u), result
 
@@ -689,8 +698,8 @@ def integrate_implicit(scheme: Scheme, state: State, times: NDArray[np.float64],
         while t < t_frame - 1e-12 * max(1.0, abs(t_frame)):
             h_try = min(h, t_frame - t)
             new, result = scheme.step(motion, t, h_try)
-            stats.newton_iterations += result.iterations
-            stats.factorizations += result.factorizations
+            stats.newton_iterations += result.iterations + result.discarded_iterations
+            stats.factorizations += result.factorizations + result.discarded_factorizations
             if not result.converged:
                 stats.rejected_steps += 1
                 if not adaptive or h_try / 2 < min_dt:

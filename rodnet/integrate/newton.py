@@ -72,6 +72,11 @@ class NewtonResult:
     message: str = ""
     singular: bool = False
     """The solve failed because an iteration matrix could not be factorised."""
+    discarded_iterations: int = 0
+    """Iterations of earlier solves of the same step from other starts that failed; counted in
+    the run's totals, not in ``iterations`` (which the step-size control reads)."""
+    discarded_factorizations: int = 0
+    """Factorisations of those failed solves."""
 
 
 class LinearSolver:

@@ -1,0 +1,42 @@
+"""A step's Newton solve starts from several guesses in turn (:meth:`Scheme._guesses`); the
+run's totals of Newton iterations and factorisations count every solve, the failed starts
+included, while the step-size control sees only the solve that was kept."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import rodnet.integrate.implicit as implicit
+from rodnet.integrate.newton import NewtonResult
+from rodnet.run import run
+from rodnet.scene import scene_from_toml
+from tests.conftest import small_net_toml
+
+
+def test_failed_starts_are_counted_in_the_run_totals(tmp_path: Path,
+                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    real = implicit.newton
+    calls: list[tuple[int, int]] = []
+    first_of_step = {"flag": True}
+
+    def newton(problem, u0, scale, solver, options, history):  # type: ignore[no-untyped-def]
+        if first_of_step["flag"]:            # every step's first start fails after 3 iterations
+            first_of_step["flag"] = False
+            calls.append((3, 2))
+            return NewtonResult(np.array(u0, copy=True), False, 3, 2, 1.0, "forced failure")
+        result = real(problem, u0, scale, solver, options, history)
+        calls.append((result.iterations, result.factorizations))
+        first_of_step["flag"] = result.converged
+        return result
+
+    monkeypatch.setattr(implicit, "newton", newton)
+    scene = scene_from_toml(small_net_toml(duration=0.02, integrator="backward-euler", n=2))
+    r = run(scene, tmp_path, progress=False)
+    assert r.summary["status"] == "ok"
+    forced = sum(1 for c in calls if c == (3, 2))
+    assert forced >= r.summary["steps"] > 0        # every step had a start that failed
+    assert r.summary["newton_iterations"] == sum(c[0] for c in calls)
+    assert r.summary["factorizations"] == sum(c[1] for c in calls)
