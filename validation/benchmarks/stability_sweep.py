@@ -124,6 +124,26 @@ def sweep(model: str, n: int, duration: float, limit: float, dts: list[float | s
     return rows
 
 
+def read_rows() -> list[dict[str, Any]]:
+    """The rows of results/stability_sweep.csv with their numbers as numbers."""
+    def number(text: str) -> Any:
+        for kind in (int, float):
+            try:
+                return kind(text)
+            except ValueError:
+                pass
+        return None if text == "" else text
+
+    with open(RESULTS / "stability_sweep.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    numeric = ("simulated_s", "wall_s", "steps", "newton_iterations", "energy_rise",
+               "max_mouth_area", "max_tension")
+    for r in rows:
+        r.update({k: number(r[k]) for k in numeric})
+        r["dt"] = r["dt"] if r["dt"] == "adaptive" else float(r["dt"])
+    return rows
+
+
 def write_tables(rows: list[dict[str, Any]], header: str) -> str:
     with open(RESULTS / "stability_sweep.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
@@ -175,13 +195,22 @@ def main() -> None:
                         help="fixed steps [s]; 'adaptive' for the default step control")
     parser.add_argument("--integrator", default="generalized-alpha",
                         help="the implicit integrator of the implicit models")
+    parser.add_argument("--keep", action="store_true",
+                        help="keep the rows of the other models in results/stability_sweep.csv "
+                             "(a rerun of some models; the settings must be those of the table)")
     args = parser.parse_args()
     dts: list[float | str] = [x if x == "adaptive" else float(x) for x in args.dts.split(",")]
     rows = []
     for model in args.models.split(","):
         rows += sweep(model, args.n, args.duration, args.limit, dts, args.integrator)
+    models = args.models.split(",")
+    if args.keep:
+        swept = {r["model"] for r in rows}
+        kept = [r for r in read_rows() if r["model"] not in swept]
+        models = list(dict.fromkeys([r["model"].split(" ")[0] for r in kept] + models))
+        rows = kept + rows
     header = (f"# Stability sweep: the reference deployment at fixed steps\n\n"
-              f"Models {args.models.replace(',', ', ')}; {args.n} element(s) per thread; "
+              f"Models {', '.join(models)}; {args.n} element(s) per thread; "
               f"{args.duration:g} s simulated; time limit {args.limit:g} s wall per run; "
               f"implicit models with {args.integrator} (generalized-alpha: rho_inf 0.7); steps "
               f"{args.dts} (adaptive: the default step control, no step keys, else adaptive = "
