@@ -72,15 +72,25 @@ class BandedMatrix:
 
     def toarray(self) -> FloatArray:
         """The matrix ``A`` as a dense (n, n) array."""
+        rows, cols, values = self._entries()
+        A = np.zeros(self.shape)
+        A[rows, cols] = values
+        return A
+
+    def tocsr(self) -> sp.csr_matrix:
+        """The matrix ``A`` in CSR storage (every entry of the band, zeros included)."""
+        rows, cols, values = self._entries()
+        return sp.csr_matrix((values, (rows, cols)), shape=self.shape)
+
+    def _entries(self) -> tuple[IndexArray, IndexArray, FloatArray]:
+        """Rows, columns and values of ``A`` over the band of ``B``."""
         n = self.shape[0]
         offsets = np.arange(-self.lower, self.upper + 1)          # j - i along the band
         i = np.repeat(np.arange(n), len(offsets))
         j = i + np.tile(offsets, n)
         inside = (j >= 0) & (j < n)
         i, j = i[inside], j[inside]
-        A = np.zeros((n, n))
-        A[self.order[i], self.order[j]] = self.ab[self.lower + self.upper + i - j, j]
-        return A
+        return self.order[i], self.order[j], self.ab[self.lower + self.upper + i - j, j]
 
 
 IterationMatrix = BandedMatrix | FloatArray | sp.csr_matrix

@@ -10,7 +10,7 @@ unchanged; otherwise it is refreshed.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Callable
 
 import numpy as np
@@ -271,7 +271,10 @@ def newton(problem: NewtonProblem, u0: FloatArray, scale: float, solver: LinearS
     Where backtracking fails, the step comes from the convexified matrix ``H`` (element blocks
     projected on the positive semidefinite ones, ``evaluate(u, "convex")``) shifted by ``mu
     diag(|H_ii|)`` (Levenberg-Marquardt), ``mu`` raised until the potential decreases; without
-    a potential, from ``H`` with a backtracking search down to ``min_step``. Near a solution
+    a potential, from ``H`` with a backtracking search down to ``min_step``; where no step
+    lowers the potential, from the Levenberg-Marquardt correction of ``|r|^2 / 2``
+    (:func:`_residual_descent`: the potential's gradient is the residual only up to terms no
+    potential gives, so it can stall away from a root). Near a solution
     full exact steps are taken, so with consistent tangents the convergence is quadratic. A
     matrix is factorised at accepted points only; a converged iterate is polished with the
     last factorisation.
@@ -319,6 +322,8 @@ def newton(problem: NewtonProblem, u0: FloatArray, scale: float, solver: LinearS
         count["iterations"] += 1
         if here.du is None:
             nxt, watch = _levenberg(p, solver, here, options, shift), None
+            if nxt is None:
+                nxt = _residual_descent(p, solver, here, options, shift)
         else:
             nxt, watch, free, watched = _next(p, solver, here, options, w, watch, free,
                                               watched, shift)
@@ -330,6 +335,8 @@ def newton(problem: NewtonProblem, u0: FloatArray, scale: float, solver: LinearS
         size = _length(w * (nxt.u - here.u))
         lowered = nxt.phi < here.phi - 1e-6 * abs(here.phi)
         previous, here = here, nxt
+        if p.merit is not None and not here.potential:
+            p = replace(p, merit=None)   # the potential gave out: |r|^2 / 2 from here on
         if history is not None:
             history.append(here.norm)
         if here.norm <= tol:
@@ -452,6 +459,8 @@ def _next(p: NewtonProblem, solver: LinearSolver, here: _Point, options: NewtonO
         nxt = _levenberg(p, solver, origin, options, shift)
     if nxt is None and _direction(p, solver, origin, "convex", options) and origin.slope < 0.0:
         nxt = _backtrack(p, origin, options.min_step, options, None, w)
+    if nxt is None and origin.potential:
+        nxt = _residual_descent(p, solver, origin, options, shift)
     return nxt, None, free, watched
 
 
@@ -566,24 +575,73 @@ def _levenberg(p: NewtonProblem, solver: LinearSolver, at: _Point, options: Newt
         scale = np.abs(diagonal(H))
         scale = np.maximum(scale, 1e-12 * float(scale.max(initial=0.0)))
         shift.setdefault("mu", LEVENBERG_START)
-    mu = shift["mu"]
+    found = _shifted(p, solver, H, scale, at.r, shift["mu"], at, lambda x: x.phi, options)
+    if found is None:
+        return None
+    trial, at.du, mu = found
+    shift["mu"] = mu / 4.0
+    return trial
+
+
+def _shifted(p: NewtonProblem, solver: LinearSolver, A: IterationMatrix, scale: FloatArray,
+             gradient: FloatArray, mu: float, at: _Point, merit: Callable[[_Point], float],
+             options: NewtonOptions) -> tuple[_Point, FloatArray, float] | None:
+    """The first correction ``du = -(A + mu diag(scale))^-1 gradient``, ``mu`` raised fourfold
+    up to :data:`LEVENBERG_TRIES` times, whose step (rotations cut) from ``at`` lowers
+    ``merit`` sufficiently (Armijo along ``gradient``, the merit's gradient); the trial point
+    (of ``p``), ``du`` and the ``mu`` that served, or None."""
     for _ in range(LEVENBERG_TRIES):
         try:
-            solver.factorize(add_diagonal(H, mu * scale))
+            solver.factorize(add_diagonal(A, mu * scale))
         except (FloatingPointError, RuntimeError):
             mu *= 4.0
             continue
-        du = -solver.solve(at.r)
+        du = -solver.solve(gradient)
         step = du if p.shorten is None else p.shorten(du)
-        slope = _dot(at.r, step)
+        slope = _dot(gradient, step)
         if np.isfinite(du).all() and slope < 0.0:
             trial = _point(p, at.u + step, at)
-            if math.isfinite(trial.phi) and trial.phi <= at.phi + options.armijo * slope:
-                shift["mu"] = mu / 4.0
-                at.du = du
-                return trial
+            value = merit(trial)
+            if math.isfinite(value) and value <= merit(at) + options.armijo * slope:
+                return trial, du, mu
         mu *= 4.0
     return None
+
+
+def _residual_descent(p: NewtonProblem, solver: LinearSolver, at: _Point,
+                      options: NewtonOptions, shift: dict[str, float]) -> _Point | None:
+    """A step that decreases ``|r|^2 / 2`` from ``at`` where no step decreases the potential:
+    the Levenberg-Marquardt correction ``(S^T S + mu D) du = -S^T r`` of the exact matrix ``S``
+    (``D = diag(S^T S)``), ``mu`` raised fourfold until the step (rotations cut) decreases
+    ``|r|^2 / 2`` sufficiently; the point returned is judged by ``|r|^2 / 2`` (``potential``
+    false), and so is the rest of the solve.
+
+    The potential's gradient is the residual only up to terms that no potential gives
+    (gyroscopic moments, and ``T(dq)^T`` on rotation increments): after long turns within a
+    step, no step may lower the potential although the residual is far from zero. ``S`` is the
+    residual's Jacobian, so for a large ``mu`` the correction heads down ``|r|^2 / 2`` (Nocedal
+    and Wright 2006, section 10.3), and the rest of the solve takes Newton steps judged by
+    ``|r|^2 / 2``."""
+    _, S = p.evaluate(at.u, "exact")
+    J = _sparse(S)
+    gradient = J.T @ at.r
+    if not np.isfinite(gradient).all() or not gradient.any():
+        return None
+    normal = (J.T @ J).tocsr()
+    scale = normal.diagonal()
+    scale = np.maximum(scale, 1e-12 * float(scale.max(initial=0.0)))
+    found = _shifted(replace(p, merit=None), solver, normal, scale, gradient,
+                     shift.get("residual_mu", LEVENBERG_START), at,
+                     lambda x: 0.5 * _dot(x.r, x.r), options)
+    if found is None:
+        return None
+    shift["residual_mu"] = found[2] / 4.0
+    return found[0]
+
+
+def _sparse(S: IterationMatrix) -> sp.csr_matrix:
+    """``S`` (CSR, band or dense storage) as a CSR matrix."""
+    return S.tocsr() if isinstance(S, BandedMatrix) else sp.csr_matrix(S)
 
 
 def _backtrack(p: NewtonProblem, at: _Point, smallest: float, options: NewtonOptions,
