@@ -209,6 +209,10 @@ def main() -> None:
         kept = [r for r in read_rows() if r["model"] not in swept]
         models = list(dict.fromkeys([r["model"].split(" ")[0] for r in kept] + models))
         rows = kept + rows
+        note = (" Rows of " + ", ".join(sorted({r["model"] for r in kept})) + " are kept from an "
+                "earlier run of this table (`--keep`)." if kept else "")
+    else:
+        note = ""
     header = (f"# Stability sweep: the reference deployment at fixed steps\n\n"
               f"Models {', '.join(models)}; {args.n} element(s) per thread; "
               f"{args.duration:g} s simulated; time limit {args.limit:g} s wall per run; "
@@ -232,7 +236,7 @@ def main() -> None:
               f"{args.duration:g} s instead of the full 3 s keeps the sweep within about an hour "
               "(a Cosserat run at dt = 1e-4 s costs 30 to 60 s per 0.3 s here); it covers the "
               "start, where the threads first snap taut and where every failure below happened, "
-              "but not the largest opening at 1.31 s.")
+              "but not the largest opening at 1.31 s." + note)
     print(write_tables(rows, header))
 
 
