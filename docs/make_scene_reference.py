@@ -41,8 +41,10 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
         "", "Explicit integrator: `true` sets the step to `explicit_safety` times the stability "
         "limit (S10) of the scene, computed once before the run; `false` uses `dt`. Implicit "
         "integrators: `true` resizes every step from a local error estimate (see "
-        "`error_tolerance`, which has a default) and halves a step whose Newton solve fails, up "
-        "to `dt_max`; `false` keeps `dt`, and a step whose Newton solve fails ends the run. Not "
+        "`error_tolerance`, which has a default) and halves a step whose Newton solve fails "
+        "(200 iterations without convergence, or no progress in 25), up to `dt_max`; `false` "
+        "keeps `dt`, Newton runs on while it makes progress (up to 1,000 iterations), and a step "
+        "whose Newton solve fails ends the run. Not "
         "used by `rk45`, which controls its step with `rtol`."),
     "simulation.error_tolerance": (
         "m", "> 0. Implicit integrators with `adaptive = true`: the local error of the node "
