@@ -124,6 +124,13 @@ def sweep(model: str, n: int, duration: float, limit: float, dts: list[float | s
     return rows
 
 
+def _place(models: list[str]) -> Any:
+    """Sort key of a row: its model in the order of ``models``, then adaptive, then by step."""
+    first = {m: k for k, m in reversed(list(enumerate(models)))}
+    return lambda r: (first[r["model"]], r["dt"] != "adaptive",
+                      0.0 if r["dt"] == "adaptive" else r["dt"])
+
+
 def read_rows() -> list[dict[str, Any]]:
     """The rows of results/stability_sweep.csv with their numbers as numbers."""
     def number(text: str) -> Any:
@@ -196,28 +203,30 @@ def main() -> None:
     parser.add_argument("--integrator", default="generalized-alpha",
                         help="the implicit integrator of the implicit models")
     parser.add_argument("--keep", action="store_true",
-                        help="keep the rows of the other models in results/stability_sweep.csv "
-                             "(a rerun of some models; the settings must be those of the table)")
+                        help="keep the rows of results/stability_sweep.csv of the other models "
+                             "and steps (a rerun of some; the settings must be those of the table)")
     args = parser.parse_args()
     dts: list[float | str] = [x if x == "adaptive" else float(x) for x in args.dts.split(",")]
     rows = []
     for model in args.models.split(","):
         rows += sweep(model, args.n, args.duration, args.limit, dts, args.integrator)
-    models = args.models.split(",")
+    models, steps, note = args.models.split(","), args.dts, ""
     if args.keep:
-        swept = {r["model"] for r in rows}
-        kept = [r for r in read_rows() if r["model"] not in swept]
-        models = list(dict.fromkeys([r["model"].split(" ")[0] for r in kept] + models))
-        rows = kept + rows
-        note = (" Rows of " + ", ".join(sorted({r["model"] for r in kept})) + " are kept from an "
-                "earlier run of this table (`--keep`)." if kept else "")
-    else:
-        note = ""
+        swept = list(dict.fromkeys((r["model"], r["dt"]) for r in rows))
+        kept = [r for r in read_rows() if (r["model"], r["dt"]) not in swept]
+        if kept:
+            rerun = "; ".join(f"{m} at {', '.join(str(d) for mm, d in swept if mm == m)}"
+                              for m in dict.fromkeys(m for m, _ in swept))
+            note = (f" This run redid {rerun}; the other rows are kept from an earlier run of "
+                    "this table (`--keep`).")
+            rows = sorted(kept + rows, key=_place([r["model"] for r in kept + rows]))
+            models = list(dict.fromkeys(r["model"].split(" ")[0] for r in rows))
+            steps = ",".join(dict.fromkeys(str(r["dt"]) for r in rows))
     header = (f"# Stability sweep: the reference deployment at fixed steps\n\n"
               f"Models {', '.join(models)}; {args.n} element(s) per thread; "
               f"{args.duration:g} s simulated; time limit {args.limit:g} s wall per run; "
               f"implicit models with {args.integrator} (generalized-alpha: rho_inf 0.7); steps "
-              f"{args.dts} (adaptive: the default step control, no step keys, else adaptive = "
+              f"{steps} (adaptive: the default step control, no step keys, else adaptive = "
               "false); "
               "one BLAS thread. Written by `validation/benchmarks/stability_sweep.py`.\n\n"
               "Outcomes: *completed* (finite, largest rise of kinetic plus elastic energy over the "
