@@ -197,11 +197,11 @@ the pinned Cosserat net at t = 0.728 s, h = 2 ms, converges linearly and takes 3
 
 def _newton(scene: Scene) -> NewtonOptions:
     sim = scene.simulation
-    fixed = sim.type == "dynamic" and not sim.adaptive
-    return NewtonOptions(rtol=min(sim.rtol, 1e-6) * 1e-2,
-                         reuse_factorization=sim.reuse_factorization,
-                         max_iterations=FIXED_STEP_ITERATIONS if fixed
-                         else NewtonOptions.max_iterations)
+    options = NewtonOptions(rtol=min(sim.rtol, 1e-6) * 1e-2,
+                            reuse_factorization=sim.reuse_factorization)
+    if sim.type == "dynamic" and not sim.adaptive:
+        return dataclasses.replace(options, max_iterations=FIXED_STEP_ITERATIONS)
+    return options
 
 
 ERROR_FRACTION = 3e-5
