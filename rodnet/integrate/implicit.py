@@ -176,10 +176,7 @@ class Scheme:
             return new, result
         euler, euler_result = BackwardEuler(self.system, self.options, self.solver,
                                             self.history).step(state, t, h)
-        euler_result.iterations += result.iterations
-        euler_result.factorizations += result.factorizations
-        euler_result.discarded_iterations += result.discarded_iterations
-        euler_result.discarded_factorizations += result.discarded_factorizations
+        euler_result.add_counts(result)
         if not euler_result.converged:
             return new, result
         euler.first_order = True
@@ -308,10 +305,7 @@ class Scheme:
             # plain cut avoids (backward Euler at a fixed 2 ms on the pinned reference net)
             plain = newton(problem, starts[0], scale, self.solver,
                            replace(self.options, restrain=False), self.history)
-            plain.iterations += result.iterations
-            plain.factorizations += result.factorizations
-            plain.discarded_iterations += result.discarded_iterations
-            plain.discarded_factorizations += result.discarded_factorizations
+            plain.add_counts(result)
             result = plain
         return p.end_state(result.u), result
 

@@ -78,6 +78,14 @@ class NewtonResult:
     discarded_factorizations: int = 0
     """Factorisations of those failed solves."""
 
+    def add_counts(self, earlier: NewtonResult) -> None:
+        """Count an earlier solve of the same step in this one: its iterations and
+        factorisations in these, its discarded ones in the discarded."""
+        self.iterations += earlier.iterations
+        self.factorizations += earlier.factorizations
+        self.discarded_iterations += earlier.discarded_iterations
+        self.discarded_factorizations += earlier.discarded_factorizations
+
 
 class LinearSolver:
     """LU of the iteration matrix, kept between calls until refreshed.
@@ -590,6 +598,7 @@ def _shifted(p: NewtonProblem, solver: LinearSolver, A: IterationMatrix, scale: 
     up to :data:`LEVENBERG_TRIES` times, whose step (rotations cut) from ``at`` lowers
     ``merit`` sufficiently (Armijo along ``gradient``, the merit's gradient); the trial point
     (of ``p``), ``du`` and the ``mu`` that served, or None."""
+    start = merit(at)
     for _ in range(LEVENBERG_TRIES):
         try:
             solver.factorize(add_diagonal(A, mu * scale))
@@ -602,7 +611,7 @@ def _shifted(p: NewtonProblem, solver: LinearSolver, A: IterationMatrix, scale: 
         if np.isfinite(du).all() and slope < 0.0:
             trial = _point(p, at.u + step, at)
             value = merit(trial)
-            if math.isfinite(value) and value <= merit(at) + options.armijo * slope:
+            if math.isfinite(value) and value <= start + options.armijo * slope:
                 return trial, du, mu
         mu *= 4.0
     return None

@@ -126,8 +126,8 @@ def sweep(model: str, n: int, duration: float, limit: float, dts: list[float | s
 
 def _place(models: list[str]) -> Any:
     """Sort key of a row: its model in the order of ``models``, then adaptive, then by step."""
-    first = {m: k for k, m in reversed(list(enumerate(models)))}
-    return lambda r: (first[r["model"]], r["dt"] != "adaptive",
+    order = list(dict.fromkeys(models))
+    return lambda r: (order.index(r["model"]), r["dt"] != "adaptive",
                       0.0 if r["dt"] == "adaptive" else r["dt"])
 
 
