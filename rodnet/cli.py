@@ -52,6 +52,9 @@ def _parser() -> argparse.ArgumentParser:
                      help="folder of the tables, plot and stored runs (default: bench); runs "
                      "already stored there are not run again")
     ben.add_argument("--quick", action="store_true", help="a 5 x 5 net for 1 s")
+    ben.add_argument("--defaults", action="store_true",
+                     help="every model at its default settings beside explicit runs on the "
+                     "full reference deployment (about two hours)")
     ben.add_argument("--only", default=None, metavar="TEXT",
                      help="only the models whose name contains TEXT (plus the references)")
     ben.add_argument("--limit", type=float, default=3600.0, metavar="SECONDS",
@@ -145,7 +148,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "bench":
         from rodnet.tools.bench import bench
 
-        print(bench(args.output, args.quick, args.only, args.limit))
+        print(bench(args.output, args.quick, args.only, args.limit, args.defaults))
         return 0
     if args.command == "sweep":
         return _sweep(args)

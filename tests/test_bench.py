@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rodnet.tools.bench import (BenchRun, Study, errors, history_orders, interpolated_peak, peak_orders, perturbed,
+from rodnet.tools.bench import (BenchRun, Study, baseline_ratios, defaults_study, errors, history_orders, interpolated_peak, peak_orders, perturbed,
                           sensitivity, setting_orders, spatial_orders, write_outputs)
 
 
@@ -166,3 +166,28 @@ def test_peak_orders_in_n() -> None:
     study.runs.append(twin)
     line = peak_orders(study, records)[0]
     assert "(differences +30, +7.5, +1.88*; orders 2.00, -)" in line
+
+
+def test_defaults_study_runs_each_model_at_its_defaults() -> None:
+    """The default runs carry no integrator or step key (except the lumped model stepped
+    implicitly), every family's reference is its explicit run at a quarter of the stability
+    limit, and wall times are given against the lumped explicit default."""
+    study = defaults_study()
+    step_keys = ("simulation.integrator", "simulation.dt", "simulation.adaptive",
+                 "simulation.error_tolerance", "simulation.explicit_safety")
+    defaults = [r for r in study.runs if r.setting == "default"]
+    assert {r.curve for r in defaults} == {"lumped explicit", "cable n=2 implicit",
+                                           "cosserat pinned n=2 implicit",
+                                           "cosserat rigid n=2 implicit"}
+    for run in defaults:
+        assert not any(o.startswith(step_keys) for o in run.overrides), run
+    for family, label in study.references.items():
+        ref = next(r for r in study.runs if r.label == label)
+        assert ref.family == family and "simulation.explicit_safety=0.25" in ref.overrides
+    records = {r.label: _record(450.0, 1.3, 20.0, [1.0]) for r in study.runs}
+    for k, r in enumerate(study.runs):
+        records[r.label]["process_wall_s"] = 2.0 if r.label == study.baseline else 2.0 * (k + 1)
+    (line,) = baseline_ratios(study, records)
+    assert "cosserat rigid n=2 implicit, default: " in line and line.count(";") == len(study.runs) - 2
+    last = study.runs[-1]
+    assert line.endswith(f"{last.curve}, {last.setting}: {len(study.runs):.3g}")

@@ -105,6 +105,8 @@ class Study:
     order_windows: tuple[float, ...] = ()
     """Times [s] up to which :func:`history_orders` also compares the histories (the whole run
     is always compared)."""
+    baseline: str = ""
+    """Label of the run whose wall time the others are given as multiples of (none: empty)."""
 
 
 DEMO_LAUNCH_SPEED = 20.0
@@ -190,6 +192,40 @@ def default_study(quick: bool = False) -> Study:
     references = {"no bending": BenchRun("lumped rk45", "rtol 1e-8", "", ()).label,
                   "bending": BenchRun(f"cosserat n={finest_n}", _tol(tolerances[-1]), "", ()).label}
     return Study(runs, references, duration, order_windows=(0.1, 0.3) if quick else (0.2, 0.5, 1.3))
+
+
+def defaults_study() -> Study:
+    """The runs of ``rodnet bench --defaults``: every model of the reference deployment at its
+    default settings (no integrator or step key: explicit for the lumped model, BDF2 with the
+    default error control for Cosserat threads), two elements per thread, beside the explicit
+    runs at half and a quarter of the stability limit (scaled rotary inertia, FORMULATION.md
+    C49 for rods) and the lumped model stepped implicitly. The reference of each family is its
+    explicit run at a quarter of the stability limit; wall times are also given as multiples of
+    the lumped explicit default (the lumped ``rodnet demo``). Cheap runs first, so that an
+    interrupted study has them all."""
+    models = (("lumped", LUMPED + _n(1)), ("cable n=2", CABLE + _n(2)),
+              ("cosserat pinned n=2", ("model.type=cosserat", "model.knots=pinned") + _n(2)),
+              ("cosserat rigid n=2", ROD + _n(2)))
+    runs: list[BenchRun] = []
+    references: dict[str, str] = {}
+    implicit: list[BenchRun] = []
+    for name, keys in models:
+        for safety in (0.5, 0.25):
+            runs.append(BenchRun(f"{name} explicit", f"safety {safety:g}", name,
+                                 keys + ("simulation.integrator=explicit",
+                                         f"simulation.explicit_safety={safety:g}")))
+        references[name] = runs[-1].label
+        extra = ("simulation.integrator=bdf2",) if name == "lumped" else ()
+        implicit.append(BenchRun(f"{name} implicit", "default" if not extra else "bdf2 default",
+                                 name, keys + extra))
+    baseline = BenchRun("lumped explicit", "default", "lumped", LUMPED + _n(1))
+    runs.insert(2, baseline)  # after the first lumped run, which compiles the kernels
+    runs += implicit
+    return Study(runs, references, 3.0, order_windows=(0.2, 0.5, 1.3),
+                 baseline=baseline.label, notes=[
+                     "Default settings: the scene's own, no integrator or step key (lumped: "
+                     "explicit at half the stability limit; Cosserat threads: BDF2 with the "
+                     "default local error control, rodnet.run.ERROR_FRACTION)."])
 
 
 GRACE = 120.0
@@ -564,6 +600,18 @@ def history_orders(study: Study, records: dict[str, dict[str, Any]]) -> list[str
     return lines
 
 
+def baseline_ratios(study: Study, records: dict[str, dict[str, Any]]) -> list[str]:
+    """Every run's wall time as a multiple of the study's baseline run (none without one)."""
+    base = records.get(study.baseline, {}).get("process_wall_s")
+    if not base:
+        return []
+    parts = [f"{run.curve}, {run.setting}: {records[run.label]['process_wall_s'] / base:.3g}"
+             + (" (interrupted)" if records[run.label].get("timed_out") else "")
+             for run in study.runs if run.label != study.baseline
+             and records[run.label].get("process_wall_s") is not None]
+    return [f"wall time as a multiple of `{study.baseline}` ({base:.3g} s): " + "; ".join(parts)]
+
+
 def write_outputs(study: Study, records: dict[str, dict[str, Any]], folder: Path) -> str:
     """Write the Markdown table, the CSV and the plot; return the Markdown."""
     rows = table_rows(study, records)
@@ -574,7 +622,8 @@ def write_outputs(study: Study, records: dict[str, dict[str, Any]], folder: Path
     md += ["| " + " | ".join(r) + " |" for r in rows]
     md += ["", *[f"- {line}" for line in spatial_orders(study, records)
                  + setting_orders(study, records) + sensitivity(study, records)[0]
-                 + peak_orders(study, records) + history_orders(study, records) + study.notes]]
+                 + peak_orders(study, records) + history_orders(study, records)
+                 + baseline_ratios(study, records) + study.notes]]
     text = "\n".join(md) + "\n"
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "work_precision.md").write_text(text)
@@ -618,10 +667,14 @@ def _plot(study: Study, records: dict[str, dict[str, Any]], path: Path) -> None:
 
 
 def bench(folder: Path, quick: bool = False, only: str | None = None,
-          limit: float | None = 3600.0) -> str:
+          limit: float | None = 3600.0, defaults: bool = False) -> str:
     """Run the study (skipping runs stored in ``folder/runs``) and write its outputs; a run
-    still going after ``limit`` wall seconds is interrupted and reported as such."""
-    study = default_study(quick)
+    still going after ``limit`` wall seconds is interrupted and reported as such. ``defaults``:
+    :func:`defaults_study` instead of the work-precision study."""
+    if defaults and quick:
+        raise ValueError("rodnet bench: --defaults and --quick cannot be combined (--defaults "
+                         "runs the full reference deployment)")
+    study = defaults_study() if defaults else default_study(quick)
     if only:
         keep = [r for r in study.runs if only in r.curve] 
         needed = {lbl for lbl in study.references.values()}
