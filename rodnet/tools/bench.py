@@ -59,6 +59,7 @@ keys = ("status", "message", "wall_time_s", "steps", "newton_iterations", "facto
 series = {k: r.arrays[k].tolist() for k in ("time", "mouth_area", "distance", "kinetic_energy", "elastic_energy") if k in r.arrays}
 print(json.dumps({"summary": {k: r.summary.get(k) for k in keys}, "series": series,
                   "process_wall_s": time.perf_counter() - start,
+                  "process_cpu_s": sum(resource.getrusage(resource.RUSAGE_SELF)[:2]),
                   "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
 """
 
@@ -296,7 +297,7 @@ def errors(record: dict[str, Any], reference: dict[str, Any]) -> dict[str, float
             "com_path": float(np.max(np.abs(d[:k] - d_ref[:k]), initial=0.0))}
 
 
-COLUMNS = ("model", "setting", "status", "wall s", "steps", "Newton its", "factorisations",
+COLUMNS = ("model", "setting", "status", "wall s", "CPU s", "steps", "Newton its", "factorisations",
            "peak MB", "max area m^2", "t of max s", "err max area %", "err t of max s",
            "err distance m", "err COM path m")
 
@@ -315,6 +316,7 @@ def table_rows(study: Study, records: dict[str, dict[str, Any]]) -> list[list[st
         if rec.get("timed_out"):
             status = f"interrupted at the time limit, t = {_fmt(s.get('simulated_time_s'))} s"
         rows.append([run.curve, run.setting, status, _fmt(rec.get("process_wall_s")),
+                     _fmt(rec.get("process_cpu_s")),
                      _fmt(s.get("steps")), _fmt(s.get("newton_iterations")),
                      _fmt(s.get("factorizations")), _fmt(rec.get("peak_rss_mb")),
                      _fmt(metrics.get("max_mouth_area")), _fmt(metrics.get("time_of_max_mouth_area")),
