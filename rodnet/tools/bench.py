@@ -22,6 +22,10 @@ orders of the largest mouth area and of its time taken between the saved frames
 times and over the whole run (:func:`history_orders`), differences at or below the floor
 starred.
 
+``rodnet bench --defaults`` (:func:`defaults_study`) runs instead every model at its default
+settings beside explicit runs on the full reference deployment, with wall times as multiples of
+the lumped explicit default.
+
 Outputs in the chosen folder: ``work_precision.md`` (Markdown table), ``work_precision.csv``,
 ``work_precision.png`` (wall time against the max-mouth-area error, one curve per model) and
 ``runs/<label>.json`` with every run's summary (a rerun skips runs already there, so an
@@ -223,6 +227,7 @@ def defaults_study() -> Study:
     runs.insert(2, baseline)  # after the first lumped run, which compiles the kernels
     runs += implicit
     return Study(runs, references, 3.0, order_windows=(0.2, 0.5, 1.3),
+                 scene="the reference deployment, every model at its defaults",
                  baseline=baseline.label, notes=[
                      "Default settings: the scene's own, no integrator or step key (lumped: "
                      "explicit at half the stability limit; Cosserat threads: BDF2 with the "
