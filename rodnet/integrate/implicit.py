@@ -672,6 +672,7 @@ def integrate_implicit(scheme: Scheme, state: State, times: NDArray[np.float64],
     accepted step is added to the state. At the times in ``restarts`` (where a load jumps) the
     scheme starts afresh (:meth:`Scheme.initial`: consistent accelerations, a multistep
     scheme's first step), so that no step's formula reaches across the jump.
+    ``on_progress(t, h, stats)`` is told every accepted step and every failed solve.
 
     Raises
     ------
@@ -696,6 +697,8 @@ def integrate_implicit(scheme: Scheme, state: State, times: NDArray[np.float64],
             stats.factorizations += result.factorizations + result.discarded_factorizations
             if not result.converged:
                 stats.rejected_steps += 1
+                if on_progress is not None:   # a run may be stopped between the retries too
+                    on_progress(t, h_try, stats)
                 if not adaptive or h_try / 2 < min_dt:
                     raise SimulationFailed(
                         f"Newton's method failed at t = {t:.6g} s with dt = {h_try:.3g} s: "
