@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from rodnet.tools.bench import (COLUMNS, BenchRun, Study, baseline_ratios, defaults_study, errors, history_orders, interpolated_peak, peak_orders, perturbed,
-                          sensitivity, setting_orders, spatial_orders, write_outputs)
+                          run_one, sensitivity, setting_orders, spatial_orders, write_outputs)
 
 
 def _record(area: float, t_max: float, dist: float, path: list[float], status: str = "ok") -> dict:
@@ -192,3 +192,22 @@ def test_defaults_study_runs_each_model_at_its_defaults() -> None:
     assert "cosserat rigid n=2 implicit, default: " in line and line.count(";") == len(study.runs) - 2
     last = study.runs[-1]
     assert line.endswith(f"{last.curve}, {last.setting}: {len(study.runs):.3g}")
+
+
+def test_a_run_past_its_time_limit_is_interrupted_with_what_it_computed(tmp_path: Path) -> None:
+    """A run still going at the limit is interrupted and keeps its frames, also when the study
+    runs as a background job (which ignores Ctrl-C, and so do the runs it starts)."""
+    import signal
+
+    run = BenchRun("lumped implicit", "bdf2 default", "lumped",
+                   ("model.type=lumped", "simulation.integrator=bdf2"))
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)   # as in a background job
+    try:
+        record = run_one(run, tmp_path, timeout=8.0, grace=20.0)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert record["timed_out"] and not record["hung"], record["summary"]
+    summary = record["summary"]
+    assert summary["status"] == "interrupted", summary
+    assert 0.0 < summary["simulated_time_s"] < 3.0
+    assert len(record["series"]["time"]) >= 2           # the frames computed so far

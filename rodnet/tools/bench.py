@@ -243,7 +243,8 @@ def run_one(run: BenchRun, folder: Path, timeout: float | None = None,
     """Run (or reuse the stored result of) one case in its own process; the record is also
     written to ``folder/runs/<label>.json``.
 
-    A run still going after ``timeout`` seconds is interrupted (SIGINT, as Ctrl-C): it keeps its
+    A run still going after ``timeout`` seconds is interrupted (SIGTERM, as ``timeout`` sends;
+    not SIGINT, which a run started from a background job ignores, as Python does): it keeps its
     frames and reports how far it got, with ``timed_out`` set in the record; one still going
     ``grace`` seconds after the interrupt is killed, recorded as failed with ``hung`` set. The
     record also holds the child's ``returncode`` and the wall time seen here, ``parent_wall_s``.
@@ -261,8 +262,8 @@ def run_one(run: BenchRun, folder: Path, timeout: float | None = None,
             stdout, stderr = child.communicate(timeout=timeout)
         except subprocess.TimeoutExpired:
             timed_out = True
-            child.send_signal(signal.SIGINT)
-            try:  # a run saves its frames on SIGINT; one that ignores it is killed
+            child.send_signal(signal.SIGTERM)
+            try:  # a run saves its frames on SIGTERM; one that ignores it is killed
                 stdout, stderr = child.communicate(timeout=grace)
             except subprocess.TimeoutExpired:
                 hung = True

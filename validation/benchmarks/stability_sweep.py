@@ -13,7 +13,7 @@ Every run must either complete with finite states and no energy growth (nothing 
 net, so kinetic plus elastic energy can only fall; "completed" needs the largest rise above the
 start value, over the saved frames, below 1 %, and the run's own guard stops it at a 10 % rise),
 or stop with a message naming the cause. A run still going after the time limit is interrupted
-like Ctrl-C (SIGINT), keeps its frames and is reported as "time limit" with the time it reached:
+(SIGTERM, as ``timeout`` does), keeps its frames and is reported as "time limit" with the time it reached:
 slow, not hung. A run that does not end within ``GRACE`` s of that interrupt is killed and
 reported as "hung".
 
