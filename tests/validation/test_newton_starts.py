@@ -46,8 +46,8 @@ def test_a_run_stops_between_failed_solves_when_asked(tmp_path: Path,
                                                       monkeypatch: pytest.MonkeyPatch) -> None:
     """SIGTERM (as Ctrl-C, which a background job ignores) during a stretch of failed solves
     (each retried with half the step) stops the run at the next failure with its frames kept,
-    not only at the next accepted step (a hard patch of a Cosserat net retried for minutes did
-    not end within 120 s of the interrupt)."""
+    not only at the next accepted step: a step retried from several starts and halvings can
+    take minutes on a Cosserat net."""
     import os
     import signal
 
