@@ -51,8 +51,9 @@ def _parser() -> argparse.ArgumentParser:
     ben.add_argument("-o", "--output", type=Path, default=Path("bench"),
                      help="folder of the tables, plot and stored runs (default: bench); runs "
                      "already stored there are not run again")
-    ben.add_argument("--quick", action="store_true", help="a 5 x 5 net for 1 s")
-    ben.add_argument("--defaults", action="store_true",
+    study = ben.add_mutually_exclusive_group()
+    study.add_argument("--quick", action="store_true", help="a 5 x 5 net for 1 s")
+    study.add_argument("--defaults", action="store_true",
                      help="every model at its default settings beside explicit runs on the "
                      "full reference deployment (about two hours)")
     ben.add_argument("--only", default=None, metavar="TEXT",

@@ -71,3 +71,11 @@ def test_summary_of_a_lumped_run_leaves_out_the_rod_keys(tmp_path: Path) -> None
         assert key not in scene["model"]
     assert "rotary_inertia_scaling" not in scene["simulation"]
     assert scene["model"]["axial"] == "tension-only"
+
+
+def test_bench_refuses_two_studies_at_once(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    with pytest.raises(SystemExit) as done:
+        main(["bench", "--quick", "--defaults", "-o", str(tmp_path / "bench")])
+    assert done.value.code == 2
+    assert "--defaults: not allowed with argument --quick" in capsys.readouterr().err
+    assert not (tmp_path / "bench").exists()
