@@ -34,7 +34,7 @@ from rodnet.contact.rigid_body import start_motion
 from rodnet.errors import SceneError, SimulationFailed
 from rodnet.integrate.explicit import integrate_explicit
 from rodnet.integrate.frames import StepStats, frame_times
-from rodnet.integrate.implicit import SCHEMES, integrate_implicit
+from rodnet.integrate.implicit import NEWTON_TARGET, SCHEMES, integrate_implicit
 from rodnet.integrate.newton import NewtonOptions
 from rodnet.integrate.rk45 import integrate_rk45
 from rodnet.integrate.static import solve_static
@@ -201,6 +201,8 @@ def _newton(scene: Scene) -> NewtonOptions:
                             reuse_factorization=sim.reuse_factorization)
     if sim.type == "dynamic" and not sim.adaptive:
         return dataclasses.replace(options, max_iterations=FIXED_STEP_ITERATIONS)
+    if sim.type == "dynamic":   # a stalled solve is cheaper taken again at half the step
+        return dataclasses.replace(options, progress_iterations=NEWTON_TARGET)
     return options
 
 

@@ -34,7 +34,11 @@ class NewtonOptions:
     correction moves no node by more than ``xtol`` times the length scale and turns none by
     more than ``xtol`` rad. A solve fails when it makes no progress (in ``stall_iterations``
     iterations its correction not halved and its merit not lowered by 1e-6 of itself) or
-    reaches ``max_iterations``; a converging solve is not cut short before that.
+    reaches ``max_iterations``; a converging solve is not cut short before that. With
+    ``progress_iterations`` set, a solve also fails when its Euclidean residual has not fallen
+    to half its smallest value for that many iterations: a search creeping down the potential
+    (linear convergence on the near-singular spin of thread sections) costs more than the
+    step taken again at half the size, which adaptive runs do.
     ``reuse_factorization``: an iterate whose residual fell to 0.3 of the last one's, with the
     same active set (slack and taut threads, contacts), takes its correction from the last
     factorisation.
@@ -47,6 +51,7 @@ class NewtonOptions:
     max_rotation: float = np.pi / 4
     xtol: float = 1e-7
     stall_iterations: int = 25
+    progress_iterations: int | None = None
     mixed: bool = True
     """Newton's matrix takes the stresses of the strains linearised along the last correction
     (the mixed Newton step, :mod:`rodnet.integrate.mixed`) in its geometric stiffness."""
@@ -291,7 +296,8 @@ def newton(problem: NewtonProblem, u0: FloatArray, scale: float, solver: LinearS
 
     The solve has converged when ``|r|_inf <= atol + rtol scale`` or a correction is
     ``small``. It fails on a non-finite residual, when no step decreases ``phi``, when for
-    ``stall_iterations`` iterations neither ``phi`` fell nor the correction halved, or after
+    ``stall_iterations`` iterations neither ``phi`` fell nor the correction halved, when for
+    ``progress_iterations`` (if set) the Euclidean residual did not halve, or after
     ``max_iterations``.
     """
     p = problem
@@ -324,6 +330,7 @@ def newton(problem: NewtonProblem, u0: FloatArray, scale: float, solver: LinearS
     shift: dict[str, float] = {"residual": _length(here.r)}
     watched = 0                      # monotone steps taken since the free one
     best, since_best = math.inf, 0
+    mark, since_mark = _length(here.r), 0   # the residual last halved, and iterations since
     while count["iterations"] < options.max_iterations:
         if here.du is not None and p.small is not None and p.small(here.du):
             final = _point(p, here.u + here.du, None)
@@ -354,6 +361,14 @@ def newton(problem: NewtonProblem, u0: FloatArray, scale: float, solver: LinearS
             history.append(here.norm)
         if here.norm <= tol:
             return done(_polished(p, solver, here), True)
+        if _length(here.r) <= 0.5 * mark:
+            mark, since_mark = _length(here.r), 0
+        else:
+            since_mark += 1
+            if options.progress_iterations is not None and \
+                    since_mark >= options.progress_iterations:
+                return done(here, False, f"no progress: the residual did not halve in "
+                            f"{since_mark} iterations (residual {here.norm:.3g} N)")
         reuse = (options.reuse_factorization and p.active_set is not None
                  and _length(here.r) <= 0.3 * _length(previous.r)
                  and p.active_set(here.u) == p.active_set(previous.u))

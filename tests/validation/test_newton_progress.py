@@ -1,0 +1,60 @@
+"""Newton gives up a solve whose residual has not halved for ``progress_iterations`` iterations
+(the adaptive step control then takes the step again at half the size).
+
+The problem is that of ``test_newton_residual_filter.py`` judged by its potential alone
+(``RESIDUAL_FILTER = 0``): ``r(u) = u + u^3 / 2 - c`` with a potential whose gradient is
+``r - d``, whose minimum lies off the root, so that the search creeps near it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import rodnet.integrate.newton as newton_module
+from rodnet.integrate.implicit import NEWTON_TARGET
+from rodnet.integrate.newton import LinearSolver, NewtonOptions, newton
+from rodnet.run import _newton
+from rodnet.data import reference_scene_text
+from rodnet.scene import scene_from_toml
+
+from tests.validation.test_newton_residual_filter import _problem
+
+
+def _solve(progress: int | None) -> tuple[newton_module.NewtonResult, list[float]]:
+    history: list[float] = []
+    result = newton(_problem(), np.zeros(4), 1.0, LinearSolver(),
+                    NewtonOptions(rtol=1e-12, atol=1e-13, progress_iterations=progress), history)
+    print("residuals:", " ".join(f"{h:.2e}" for h in history))
+    return result, history
+
+
+def test_a_creeping_solve_is_given_up_after_the_iterations_without_halving(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(newton_module, "RESIDUAL_FILTER", 0.0)
+    slow, _ = _solve(None)
+    fast, history = _solve(4)
+    assert not slow.converged and not fast.converged
+    assert "no progress" in fast.message and "no progress" not in slow.message
+    # given up 4 iterations into the creep near the potential's minimum (the residual
+    # standing at 2e-4), where the unlimited solve takes 33 before it stalls
+    assert fast.iterations <= 12 < slow.iterations
+    assert history[-1] > 0.99 * history[-2] > 1e-4
+
+
+def test_a_converging_solve_is_not_cut_short() -> None:
+    # with the limit the runs use: the overshooting first steps from u = 0 do not halve the
+    # residual, Newton's tail halves it at every iteration
+    result, history = _solve(NEWTON_TARGET)
+    assert result.converged, result.message
+    assert history[-1] <= 1e-12
+
+
+def test_only_adaptive_dynamic_runs_give_up_on_progress() -> None:
+    """Fixed steps end the run on a failed solve, and static load steps keep their own
+    splitting: only adaptive dynamic runs retry a stalled step at half the size."""
+    def options(*keys: str) -> NewtonOptions:
+        return _newton(scene_from_toml(reference_scene_text(), list(keys)))
+    assert options("model.type=cosserat").progress_iterations is not None
+    assert options("model.type=cosserat", "simulation.adaptive=false",
+                   "simulation.dt=1e-3").progress_iterations is None
