@@ -437,7 +437,7 @@ def _direction(p: NewtonProblem, solver: LinearSolver, at: _Point, matrix: str,
     curved = at.potential and matrix == "exact"
     restrain = _restrains(p, options)
     # a band matrix is factorised in place
-    original = _copy(S) if curved or restrain else S
+    original = _copy(S) if restrain else S
     try:
         solver.factorize(S)
     except (FloatingPointError, RuntimeError):
@@ -445,9 +445,10 @@ def _direction(p: NewtonProblem, solver: LinearSolver, at: _Point, matrix: str,
     du = -solver.solve(at.r)
     if not np.isfinite(du).all():
         return False
-    if curved and _dot(du, original.dot(du)) <= 0.0:   # type: ignore[union-attr]
-        # the potential curves down along du: an indefinite matrix, whose correction heads
-        # for a saddle or a maximum; the convexified matrix's heads downhill
+    if curved and _dot(du, at.r) >= 0.0:
+        # du . S du = -du . r <= 0: the potential curves down along du (an indefinite matrix,
+        # whose correction heads for a saddle or a maximum); the convexified matrix's heads
+        # downhill
         return _direction(p, solver, at, "convex", options)
     if restrain:
         du = _restrained(p, solver, original, at.r, du)
