@@ -14,7 +14,7 @@ import pytest
 import rodnet.integrate.newton as newton_module
 from rodnet.integrate.implicit import NEWTON_TARGET
 from rodnet.integrate.newton import LinearSolver, NewtonOptions, newton
-from rodnet.run import _newton
+from rodnet.run import _has_rotations, _newton, prepare
 from rodnet.data import reference_scene_text
 from rodnet.scene import scene_from_toml
 
@@ -50,11 +50,15 @@ def test_a_converging_solve_is_not_cut_short() -> None:
     assert history[-1] <= 1e-12
 
 
-def test_only_adaptive_dynamic_runs_give_up_on_progress() -> None:
-    """Fixed steps end the run on a failed solve, and static load steps keep their own
-    splitting: only adaptive dynamic runs retry a stalled step at half the size."""
+def test_only_adaptive_dynamic_runs_of_rods_give_up_on_progress() -> None:
+    """Fixed steps end the run on a failed solve, static load steps keep their own splitting,
+    and threads without rotations (lumped, contact) take no easier steps when shorter: only
+    adaptive dynamic runs of threads with rotation unknowns retry a creeping step at half the
+    size."""
     def options(*keys: str) -> NewtonOptions:
-        return _newton(scene_from_toml(reference_scene_text(), list(keys)))
-    assert options("model.type=cosserat").progress_iterations is not None
+        prepared = prepare(scene_from_toml(reference_scene_text(), list(keys)))
+        return _newton(prepared.scene, _has_rotations(prepared))
+    assert options("model.type=cosserat").progress_iterations == NEWTON_TARGET
     assert options("model.type=cosserat", "simulation.adaptive=false",
                    "simulation.dt=1e-3").progress_iterations is None
+    assert options("model.type=lumped", "simulation.integrator=bdf2").progress_iterations is None
