@@ -190,10 +190,10 @@ Integrate = Callable[[Prepared, Recorder, Progress, StepStats], StepStats]
 
 FIXED_STEP_ITERATIONS = 1000
 """Newton's iteration limit at fixed implicit steps, where a failed solve ends the run (adaptive
-steps and static load steps keep 200 and halve the step instead; adaptive steps also give up a
-solve whose residual has not halved in ``NEWTON_TARGET`` iterations): the backward-Euler step
-of the pinned Cosserat net at t = 0.728 s, h = 2 ms, converges linearly and takes 380
-iterations (docs/rod_model.md, Limits)."""
+steps and static load steps keep 200 and halve the step instead; adaptive steps of threads with
+rotations also give up a solve whose residual has not halved in ``NEWTON_TARGET`` iterations):
+the backward-Euler step of the pinned Cosserat net at t = 0.728 s, h = 2 ms, converges
+linearly and takes 380 iterations (docs/rod_model.md, Limits)."""
 
 
 def _newton(scene: Scene, rotations: bool) -> NewtonOptions:
