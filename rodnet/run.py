@@ -191,7 +191,7 @@ Integrate = Callable[[Prepared, Recorder, Progress, StepStats], StepStats]
 FIXED_STEP_ITERATIONS = 1000
 """Newton's iteration limit at fixed implicit steps, where a failed solve ends the run (adaptive
 steps and static load steps keep 200 and halve the step instead; adaptive steps of threads with
-rotations also give up a solve whose residual has not halved in ``NEWTON_TARGET`` iterations):
+rotations also give up a long solve whose residual stopped halving):
 the backward-Euler step of the pinned Cosserat net at t = 0.728 s, h = 2 ms, converges
 linearly and takes 380 iterations (docs/rod_model.md, Limits)."""
 
@@ -199,8 +199,9 @@ linearly and takes 380 iterations (docs/rod_model.md, Limits)."""
 def _newton(scene: Scene, rotations: bool) -> NewtonOptions:
     """Newton's options for ``scene``; ``rotations``: the threads have rotation unknowns.
 
-    Adaptive dynamic runs of threads with rotations give up a solve whose residual has not
-    halved in ``NEWTON_TARGET`` iterations (the step is taken again at half the size): there
+    Adaptive dynamic runs of threads with rotations give up a solve of at least twice
+    ``NEWTON_TARGET`` iterations whose residual has not halved in the last ``NEWTON_TARGET``
+    (the step is taken again at half the size): there
     a creeping solve comes from rotation nodes of almost no stiffness and a shorter step
     converges (docs/rod_model.md, Limits). Without rotations the limit is not set: the
     capture of docs/capture.md (lumped threads, contact) took 109,412 iterations in 12,746

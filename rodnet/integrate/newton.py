@@ -35,10 +35,10 @@ class NewtonOptions:
     more than ``xtol`` rad. A solve fails when it makes no progress (in ``stall_iterations``
     iterations its correction not halved and its merit not lowered by 1e-6 of itself) or
     reaches ``max_iterations``; a converging solve is not cut short before that. With
-    ``progress_iterations`` set, a solve also fails when its Euclidean residual has not fallen
-    to half its smallest value for that many iterations: a search creeping down the potential
-    (linear convergence on the near-singular spin of thread sections) costs more than the
-    step taken again at half the size, which adaptive runs do.
+    ``progress_iterations`` set, a solve that has taken twice that many iterations also fails
+    when its Euclidean residual has not fallen to half its smallest value for that many: a
+    search creeping down the potential (linear convergence on rotation nodes of almost no
+    stiffness) costs more than the step taken again at half the size, which adaptive runs do.
     ``reuse_factorization``: an iterate whose residual fell to 0.3 of the last one's, with the
     same active set (slack and taut threads, contacts), takes its correction from the last
     factorisation.
@@ -297,7 +297,8 @@ def newton(problem: NewtonProblem, u0: FloatArray, scale: float, solver: LinearS
     The solve has converged when ``|r|_inf <= atol + rtol scale`` or a correction is
     ``small``. It fails on a non-finite residual, when no step decreases ``phi``, when for
     ``stall_iterations`` iterations neither ``phi`` fell nor the correction halved, when for
-    ``progress_iterations`` (if set) the Euclidean residual did not halve, or after
+    ``progress_iterations`` (if set) the Euclidean residual did not halve (after at least
+    twice as many iterations), or after
     ``max_iterations``.
     """
     p = problem
@@ -366,7 +367,8 @@ def newton(problem: NewtonProblem, u0: FloatArray, scale: float, solver: LinearS
         else:
             since_mark += 1
             if options.progress_iterations is not None and \
-                    since_mark >= options.progress_iterations:
+                    since_mark >= options.progress_iterations and \
+                    count["iterations"] >= 2 * options.progress_iterations:
                 return done(here, False, f"no progress: the residual did not halve in "
                             f"{since_mark} iterations (residual {here.norm:.3g} N)")
         reuse = (options.reuse_factorization and p.active_set is not None

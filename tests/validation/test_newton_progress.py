@@ -1,5 +1,6 @@
-"""Newton gives up a solve whose residual has not halved for ``progress_iterations`` iterations
-(the adaptive step control then takes the step again at half the size).
+"""Newton gives up a solve of at least ``2 progress_iterations`` iterations whose residual has not
+halved for the last ``progress_iterations`` (the adaptive step control then takes the step again
+at half the size).
 
 The problem is that of ``test_newton_residual_filter.py`` judged by its potential alone
 (``RESIDUAL_FILTER = 0``): ``r(u) = u + u^3 / 2 - c`` with a potential whose gradient is
@@ -36,9 +37,9 @@ def test_a_creeping_solve_is_given_up_after_the_iterations_without_halving(
     fast, history = _solve(4)
     assert not slow.converged and not fast.converged
     assert "no progress" in fast.message and "no progress" not in slow.message
-    # given up 4 iterations into the creep near the potential's minimum (the residual
-    # standing at 2e-4), where the unlimited solve takes 33 before it stalls
-    assert fast.iterations <= 12 < slow.iterations
+    # given up in the creep near the potential's minimum (the residual standing at 2e-4), once
+    # the solve has taken 8 iterations, where the unlimited solve takes 33 before it stalls
+    assert 8 <= fast.iterations <= 12 < slow.iterations
     assert history[-1] > 0.99 * history[-2] > 1e-4
 
 
