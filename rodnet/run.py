@@ -196,10 +196,11 @@ the backward-Euler step of the pinned Cosserat net at t = 0.728 s, h = 2 ms, con
 linearly and takes 380 iterations (docs/rod_model.md, Limits)."""
 
 
-def _newton(scene: Scene, rotations: bool) -> NewtonOptions:
-    """Newton's options for ``scene``; ``rotations``: the threads have rotation unknowns.
+def _newton(p: Prepared) -> NewtonOptions:
+    """Newton's options for the prepared run ``p``.
 
-    Adaptive dynamic runs of threads with rotations give up a solve of at least twice
+    Adaptive dynamic runs of threads with rotation unknowns (rod sections; a free body's own
+    rotation does not count) give up a solve of at least twice
     ``NEWTON_TARGET`` iterations whose residual has not halved in the last ``NEWTON_TARGET``
     (the step is taken again at half the size): there
     a creeping solve comes from rotation nodes of almost no stiffness and a shorter step
@@ -207,20 +208,14 @@ def _newton(scene: Scene, rotations: bool) -> NewtonOptions:
     capture of docs/capture.md (lumped threads, contact) took 109,412 iterations in 12,746
     steps with it against 29,004 in 2,227 without, its contact steps being no easier when
     shorter."""
-    sim = scene.simulation
+    sim = p.scene.simulation
     options = NewtonOptions(rtol=min(sim.rtol, 1e-6) * 1e-2,
                             reuse_factorization=sim.reuse_factorization)
     if sim.type == "dynamic" and not sim.adaptive:
         return dataclasses.replace(options, max_iterations=FIXED_STEP_ITERATIONS)
-    if sim.type == "dynamic" and rotations:
+    if sim.type == "dynamic" and len(p.system.model.rotation_dofs()):
         return dataclasses.replace(options, progress_iterations=NEWTON_TARGET)
     return options
-
-
-def _has_rotations(p: Prepared) -> bool:
-    """Whether the threads of ``p`` have rotation unknowns (rod sections; a free body's own
-    rotation does not count)."""
-    return len(p.system.model.rotation_dofs()) > 0
 
 
 ERROR_FRACTION = 3e-5
@@ -245,7 +240,7 @@ def _implicit(p: Prepared, recorder: Recorder, bar: Progress, stats: StepStats) 
     sim = p.scene.simulation
     cls = SCHEMES[p.scene.integrator]
     extra = {"rho_inf": sim.rho_inf} if "rho_inf" in cls.__dataclass_fields__ else {}
-    scheme = cls(p.system, _newton(p.scene, _has_rotations(p)), **extra)
+    scheme = cls(p.system, _newton(p), **extra)
     return integrate_implicit(scheme, p.state, p.times, sim.dt, sim.adaptive, recorder, bar,
                               dt_max=sim.dt_max, error_tolerance=error_tolerance(p), stats=stats,
                               restarts=frozenset(float(t) for t in p.breaks))
@@ -271,8 +266,7 @@ def register_integrator(name: str, integrate: Integrate) -> None:
 
 
 def _static(p: Prepared, recorder: Recorder, bar: Progress, stats: StepStats) -> StepStats:
-    return solve_static(p.system, p.state, p.scene.simulation.load_steps,
-                        _newton(p.scene, _has_rotations(p)),
+    return solve_static(p.system, p.state, p.scene.simulation.load_steps, _newton(p),
                         recorder, stats=stats)
 
 

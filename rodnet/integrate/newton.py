@@ -36,7 +36,7 @@ class NewtonOptions:
     iterations its correction not halved and its merit not lowered by 1e-6 of itself) or
     reaches ``max_iterations``; a converging solve is not cut short before that. With
     ``progress_iterations`` set, a solve that has taken twice that many iterations also fails
-    when its Euclidean residual has not fallen to half its smallest value for that many: a
+    when its Euclidean residual has not halved (from where it last did) for that many: a
     search creeping down the potential (linear convergence on rotation nodes of almost no
     stiffness) costs more than the step taken again at half the size, which adaptive runs do.
     ``reuse_factorization``: an iterate whose residual fell to 0.3 of the last one's, with the
@@ -355,15 +355,16 @@ def newton(problem: NewtonProblem, u0: FloatArray, scale: float, solver: LinearS
         size = _length(w * (nxt.u - here.u))
         lowered = nxt.phi < here.phi - 1e-6 * abs(here.phi)
         previous, here = here, nxt
-        shift["residual"] = min(shift["residual"], _length(here.r))
+        length = _length(here.r)
+        shift["residual"] = min(shift["residual"], length)
         if p.merit is not None and not here.potential:
             p = replace(p, merit=None)   # the potential gave out: |r|^2 / 2 from here on
         if history is not None:
             history.append(here.norm)
         if here.norm <= tol:
             return done(_polished(p, solver, here), True)
-        if _length(here.r) <= 0.5 * mark:
-            mark, since_mark = _length(here.r), 0
+        if length <= 0.5 * mark:
+            mark, since_mark = length, 0
         else:
             since_mark += 1
             if options.progress_iterations is not None and \

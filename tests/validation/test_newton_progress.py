@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 import rodnet.integrate.newton as newton_module
+from rodnet.data import reference_scene_text
 from rodnet.integrate.implicit import NEWTON_TARGET
 from rodnet.integrate.newton import LinearSolver, NewtonOptions, newton
-from rodnet.run import _has_rotations, _newton, prepare
-from rodnet.data import reference_scene_text
+from rodnet.run import _newton, prepare
 from rodnet.scene import scene_from_toml
 
 from tests.validation.test_newton_residual_filter import _problem
@@ -57,8 +57,7 @@ def test_only_adaptive_dynamic_runs_of_rods_give_up_on_progress() -> None:
     adaptive dynamic runs of threads with rotation unknowns retry a creeping step at half the
     size."""
     def options(*keys: str) -> NewtonOptions:
-        prepared = prepare(scene_from_toml(reference_scene_text(), list(keys)))
-        return _newton(prepared.scene, _has_rotations(prepared))
+        return _newton(prepare(scene_from_toml(reference_scene_text(), list(keys))))
     assert options("model.type=cosserat").progress_iterations == NEWTON_TARGET
     assert options("model.type=cosserat", "simulation.adaptive=false",
                    "simulation.dt=1e-3").progress_iterations is None
