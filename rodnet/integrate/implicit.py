@@ -287,8 +287,9 @@ class Scheme:
         rot = s.rotation_dofs()
         # a start that turns a node by more than the rotation cap lies beyond where the
         # exponential map is one-to-one near the solution: left out (the last start turns least)
+        # (last to first: the step's cached end state is then that of the first start)
         turns = [float(np.abs(p.end_state(u0).increment[rot]).max(initial=0.0))  # type: ignore[index]
-                 for u0 in p.starts]
+                 for u0 in reversed(p.starts)][::-1]
         starts = [u0 for u0, turn in zip(p.starts, turns)
                   if turn <= self.options.max_rotation] or [p.starts[int(np.argmin(turns))]]
         discarded = [0, 0]   # iterations and factorisations of the starts that failed

@@ -170,6 +170,17 @@ def strains_and_rates(
     return strain, rate
 
 
+def element_rotation(x: FloatArray, q: FloatArray) -> FloatArray:
+    """Angle ``|psi|`` [rad] of every element's relative rotation (§Kinematics, C11): (n,), as
+    the norm of :func:`rodnet.kernels.cosserat_strain.kinematics`'s ``psi``."""
+    arrays = (_as_float(x), _as_float(q))
+    n = arrays[0].shape[0]
+    _check_shapes(tuple(a.shape for a in arrays), ((n, 2, 3), (n, 2, 4)))
+    out = np.empty(n)
+    _element_rotation_kernel(*arrays, out)
+    return out
+
+
 def stress_resultants(
     # Model:
     stiffness: FloatArray, tau: FloatArray,
@@ -633,6 +644,13 @@ def _strains_and_rates_kernel(rest_length, reference_strain, x, q, velocity, ser
         for k in range(6):
             strain_out[e, k] = eps[k]
             rate_out[e, k] = rate[k]
+
+
+@numba.njit(cache=True)
+def _element_rotation_kernel(x, q, out):  # pragma: no cover - compiled
+    for e in range(out.shape[0]):
+        (p0, p1, p2), _, _ = _kinematics(x, q, e)
+        out[e] = np.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
 
 
 @numba.njit(cache=True)

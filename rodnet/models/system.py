@@ -370,11 +370,16 @@ class ThreadSystem:
     def _triple_transforms(self, dq: FloatArray) -> FloatArray:
         """(n_dof / 3, 3, 3) blocks of ``T(dq)`` per DOF triple: ``dexp`` of the increment on
         rotation nodes whose three rotations are free, the identity elsewhere."""
-        transforms = np.tile(np.eye(3), (self.n_dof // 3, 1, 1))
+        transforms = self._identity_triples.copy()
         if len(self._free_rotation_nodes):
             transforms[self._free_rotation_dofs[:, 0] // 3] = so3_compiled.dexp(
                 np.ascontiguousarray(dq[self._free_rotation_dofs]))
         return transforms
+
+    @cached_property
+    def _identity_triples(self) -> FloatArray:
+        """(n_dof / 3, 3, 3) identity blocks: :meth:`_triple_transforms` without rotations."""
+        return np.tile(np.eye(3), (self.n_dof // 3, 1, 1))
 
     @cached_property
     def _free_rotation_nodes(self) -> NDArray[np.int64]:

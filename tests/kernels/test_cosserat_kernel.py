@@ -407,3 +407,21 @@ def test_internal_forces_balance_in_force_and_moment():
     moment = (np.cross(x[:, 0], f[:, 0]) + np.cross(x[:, 1], f[:, 2])
               + np.einsum("nij,nj->ni", R[:, 0], f[:, 1]) + np.einsum("nij,nj->ni", R[:, 1], f[:, 3]))
     np.testing.assert_allclose(moment, 0.0, atol=1e-12 * np.abs(f).max() * (1 + np.abs(x).max()))
+
+
+def test_compiled_element_rotation_is_the_angle_of_the_relative_rotation() -> None:
+    """The compiled angle of each element's relative rotation is ``|psi|`` of the NumPy
+    kinematics, and for a section turned about the chord by a known angle (past half a turn, on
+    the quaternion double cover) it is that angle."""
+    from rodnet.kernels.cosserat_compiled import element_rotation
+
+    rng = np.random.default_rng(7)
+    _, _, x, q = deformed(rng, 50, 0.01, max_angle=3.0)
+    expected = np.linalg.norm(kinematics(x, q)[0], axis=1)
+    assert np.allclose(element_rotation(x, q), expected, rtol=1e-13, atol=1e-15)
+    angles = np.array([0.0, 1e-8, 0.7, 3.5, 6.0])
+    q1 = random_quats(rng, len(angles))
+    q2 = so3.quat_multiply(q1, so3.quat_from_rotvec(angles[:, None] * E1))
+    x = np.zeros((len(angles), 2, 3))
+    assert np.allclose(element_rotation(x, np.stack([q1, q2], axis=1)), angles, rtol=1e-12,
+                       atol=1e-15)

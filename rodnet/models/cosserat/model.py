@@ -25,8 +25,8 @@ from rodnet.kernels import so3, so3_compiled
 from rodnet.kernels.convex import convex_blocks
 from rodnet.kernels.cosserat import (internal_force, internal_force_and_tangents, section_state,
                                      step_potential, strain_energy)
-from rodnet.kernels.cosserat_compiled import SERIES_ARGUMENTS, RodElements, strains_and_rates
-from rodnet.kernels.cosserat_strain import kinematics
+from rodnet.kernels.cosserat_compiled import (SERIES_ARGUMENTS, RodElements, element_rotation,
+                                              strains_and_rates)
 from rodnet.kernels.hinge import Hinges, no_hinges
 from rodnet.kernels.schedule import LoadSchedule, factors
 from rodnet.kernels.segments import Segments
@@ -339,7 +339,7 @@ class CosseratModel:
     def element_rotation(self, q: Configuration) -> FloatArray:
         """Relative rotation angle ``|psi|`` [rad] of every element's end triads, (E,): what the
         rotation stop (FORMULATION.md C52) acts on beyond ``ROTATION_STOP``."""
-        return np.linalg.norm(kinematics(*self._element_pose(q))[0], axis=1)
+        return element_rotation(*self._element_pose(q))
 
     def frame_arrays(self, q: Configuration, v: FloatArray) -> dict[str, FloatArray]:
         """What a saved frame holds: positions, velocities, rotations, and per element the axial
