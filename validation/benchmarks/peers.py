@@ -115,11 +115,9 @@ report(status="ok" if finite else "diverged", steps=n_frames * per_frame, dt=dt,
 """
 
 sys.path.insert(0, str(HERE))
-from thread_gravity import SCENE as STEPPED_THREAD  # noqa: E402  (the same thread)
+from thread_defaults import DEFAULT_SCENE  # noqa: E402  (the same thread)
 
-THREAD_SCENE = "\n".join(line for line in STEPPED_THREAD.splitlines()
-                         if line.split(" =")[0] not in ("dt", "adaptive", "integrator", "rho_inf")
-                         ).format(duration=1.0, elements=20)
+THREAD_SCENE = DEFAULT_SCENE.format(duration=1.0, elements=20)
 """The thread of ``thread_gravity.py`` with rodnet's default integrator and step control."""
 
 RODNET_THREAD = COMMON + "SCENE = " + repr(THREAD_SCENE) + r"""
