@@ -211,3 +211,15 @@ def test_a_run_past_its_time_limit_is_interrupted_with_what_it_computed(tmp_path
     assert summary["status"] == "interrupted", summary
     assert 0.0 < summary["simulated_time_s"] < 3.0
     assert len(record["series"]["time"]) >= 2           # the frames computed so far
+
+
+def test_a_runs_progress_lines_are_passed_on(tmp_path: Path, capsys) -> None:
+    """The progress lines of a run reach the study's standard error, naming the simulated time
+    of the run (a long bench run is not silent for the hour it takes)."""
+    run = BenchRun("lumped explicit", "short", "lumped",
+                   ("model.type=lumped", "simulation.duration=0.05"))
+    record = run_one(run, tmp_path, progress_every=0.0)
+    assert record["summary"]["status"] == "ok", record["summary"]
+    lines = [line for line in capsys.readouterr().err.splitlines()
+             if line.startswith("rodnet bench:     t = ")]
+    assert lines and "of 0.05 s (100 %)" in lines[-1], lines

@@ -42,6 +42,7 @@ import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -57,7 +58,7 @@ from rodnet.data import reference_scene_text as demo_scene_text
 from rodnet.run import run
 from rodnet.scene import scene_from_toml
 overrides = json.loads(sys.argv[1]) + ["output.vtk=false", "output.picture=false", "output.plot=false"]
-r = run(scene_from_toml(demo_scene_text(), overrides), sys.argv[2], progress=False)
+r = run(scene_from_toml(demo_scene_text(), overrides), sys.argv[2])  # progress lines on stderr
 keys = ("status", "message", "wall_time_s", "steps", "newton_iterations", "factorizations",
         "rejected_steps", "metrics", "simulated_time_s")
 series = {k: r.arrays[k].tolist() for k in ("time", "mouth_area", "distance", "kinetic_energy", "elastic_energy") if k in r.arrays}
@@ -237,11 +238,16 @@ def defaults_study() -> Study:
 GRACE = 120.0
 """Seconds a run may take to save its frames after the interrupt before it is killed."""
 
+PROGRESS_SECONDS = 300.0
+"""A run's progress line (simulated time, steps, step size, wall time) is passed on to the
+study's standard error at most this often [s]."""
+
 
 def run_one(run: BenchRun, folder: Path, timeout: float | None = None,
-            grace: float = GRACE) -> dict[str, Any]:
+            grace: float = GRACE, progress_every: float = PROGRESS_SECONDS) -> dict[str, Any]:
     """Run (or reuse the stored result of) one case in its own process; the record is also
-    written to ``folder/runs/<label>.json``.
+    written to ``folder/runs/<label>.json``. The run's progress lines are passed on to standard
+    error, at most one every ``progress_every`` seconds.
 
     A run still going after ``timeout`` seconds is interrupted (SIGTERM, as ``timeout`` sends;
     not SIGINT, which a run started from a background job ignores, as Python does): it keeps its
@@ -258,17 +264,19 @@ def run_one(run: BenchRun, folder: Path, timeout: float | None = None,
     with tempfile.TemporaryDirectory(prefix="rodnet-bench-") as out:
         child = subprocess.Popen([sys.executable, "-c", CHILD, json.dumps(list(run.overrides)), out],
                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        readers = _Readers(child, progress_every)
         try:
-            stdout, stderr = child.communicate(timeout=timeout)
+            child.wait(timeout=timeout)
         except subprocess.TimeoutExpired:
             timed_out = True
             child.send_signal(signal.SIGTERM)
             try:  # a run saves its frames on SIGTERM; one that ignores it is killed
-                stdout, stderr = child.communicate(timeout=grace)
+                child.wait(timeout=grace)
             except subprocess.TimeoutExpired:
                 hung = True
                 child.kill()
-                stdout, stderr = child.communicate()
+                child.wait()
+        stdout, stderr = readers.join()
     lines = stdout.strip().splitlines()
     if hung or child.returncode not in (0, 1) or not lines:
         tail = stderr.strip().splitlines()
@@ -283,6 +291,36 @@ def run_one(run: BenchRun, folder: Path, timeout: float | None = None,
                        "overrides": list(run.overrides)})
     store.write_text(json.dumps(record))
     return record
+
+
+class _Readers:
+    """Threads that read a child's standard output and error while it runs, passing its progress
+    lines (``rodnet: t = ...``) on to this process's standard error, at most one every
+    ``every`` seconds."""
+
+    def __init__(self, child: subprocess.Popen, every: float) -> None:  # type: ignore[type-arg]
+        self.out: list[str] = []
+        self.err: list[str] = []
+        self.every, self.last = every, -math.inf
+        self.threads = [threading.Thread(target=self._read, args=(child.stdout, False), daemon=True),
+                        threading.Thread(target=self._read, args=(child.stderr, True), daemon=True)]
+        for thread in self.threads:
+            thread.start()
+
+    def _read(self, stream: Any, is_err: bool) -> None:
+        for line in stream:
+            (self.err if is_err else self.out).append(line)
+            if is_err and line.startswith("rodnet: t = ") and \
+                    time.perf_counter() - self.last >= self.every:
+                self.last = time.perf_counter()
+                print("rodnet bench:     " + line[len("rodnet: "):].rstrip(), file=sys.stderr,
+                      flush=True)
+
+    def join(self) -> tuple[str, str]:
+        """Everything the child wrote to its standard output and error, once it has ended."""
+        for thread in self.threads:
+            thread.join()
+        return "".join(self.out), "".join(self.err)
 
 
 def errors(record: dict[str, Any], reference: dict[str, Any]) -> dict[str, float]:
