@@ -15,7 +15,8 @@
 
 Every case runs in its own process, the cases interleaved and repeated; times are the least of
 the repeats (other work on a shared machine only ever adds to them). ``--old DIR`` adds rodnet
-from another source tree (e.g. a checkout of an earlier version) as a case, on PYTHONPATH.
+from another source tree (e.g. a checkout of an earlier version) as a case of each scene, on
+PYTHONPATH.
 Writes ``results/peers.md``.
 
 Usage: ``python validation/benchmarks/peers.py [--repeats N] [--old DIR] [--output FILE]``
@@ -166,6 +167,8 @@ def cases(old: Path | None) -> dict[str, tuple[str, list[str], Path]]:
     out[MUJOCO_SAME] = (MUJOCO_NET, ["1.0", net], ROOT)
     out["MuJoCo, twice rodnet's step"] = (MUJOCO_NET, ["2.0", net], ROOT)
     out["rodnet thread"] = (RODNET_THREAD, [repr(ELASTICA_SECONDS)], ROOT)
+    if old is not None:
+        out["rodnet thread (old)"] = (RODNET_THREAD, [repr(ELASTICA_SECONDS)], old)
     out["PyElastica thread"] = (ELASTICA_THREAD, [repr(ELASTICA_SECONDS), repr(ELASTICA_DT)],
                                 ROOT)
     return out
@@ -187,7 +190,7 @@ def table(res: dict[str, dict], repeats: int, old: Path | None) -> str:
     lines = ["## Reference deployment (lumped net, 3 s)", "",
              "| code | step s | steps | wall s | CPU s | max mouth area m^2 | vs rodnet | time of max s "
              "| CPU ratio to rodnet |", "|---|---|---|---|---|---|---|---|---|"]
-    for name in [n for n in res if not n.endswith("thread")]:
+    for name in [n for n in res if "thread" not in n]:
         r = res[name]
         if r.get("status") != "ok":
             lines.append(f"| {name} | | | | | {r.get('status')} | | | |")
@@ -205,10 +208,13 @@ def table(res: dict[str, dict], repeats: int, old: Path | None) -> str:
     lines += ["", "## Clamped thread under gravity (1.5 m x 1 mm nylon, 20 elements)", "",
               "| code | CPU s per simulated s | integration wall s per simulated s | steps | tip at "
               f"{ELASTICA_SECONDS:g} s m |", "|---|---|---|---|---|"]
-    for name, r in (("rodnet (" + str(thread.get("integrator")) + ", default step control, 1 s)",
-                     thread),
-                    (f"PyElastica (position Verlet, dt {ELASTICA_DT:g} s, {ELASTICA_SECONDS:g} s "
-                     "scaled to 1 s)", peer)):
+    rows = [("rodnet (" + str(thread.get("integrator")) + ", default step control, 1 s)",
+             thread)]
+    if "rodnet thread (old)" in res:
+        rows.append(("rodnet (old), the same", res["rodnet thread (old)"]))
+    rows.append((f"PyElastica (position Verlet, dt {ELASTICA_DT:g} s, {ELASTICA_SECONDS:g} s "
+                 "scaled to 1 s)", peer))
+    for name, r in rows:
         if r.get("status") != "ok":
             lines.append(f"| {name} | {r.get('status')} | | | |")
             continue
@@ -221,6 +227,10 @@ def table(res: dict[str, dict], repeats: int, old: Path | None) -> str:
         lines += ["", f"PyElastica / rodnet, CPU per simulated second: "
                   f"{peer['per_second_cpu'] / thread['per_second_cpu']:.0f} times. Tips "
                   f"{gap:.2f} mm apart at {ELASTICA_SECONDS:g} s."]
+        before = res.get("rodnet thread (old)", {})
+        if before.get("status") == "ok":
+            lines += [f"rodnet (old) / rodnet, the same: "
+                      f"{before['per_second_cpu'] / thread['per_second_cpu']:.2f} times."]
     loads = [x for r in res.values() for x in r.get("loads", []) if x is not None]
     lines += ["", f"Least of {repeats} runs of each case, interleaved; 1-minute load average "
               f"during the runs {min(loads):.1f} - {max(loads):.1f} on {os.cpu_count()} cores."]
