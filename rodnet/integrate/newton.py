@@ -328,7 +328,7 @@ def newton(problem: NewtonProblem, u0: FloatArray, scale: float, solver: LinearS
     free = True                      # a free step may be taken (none failed since a full one)
     # kept between iterations: the last Levenberg-Marquardt factor that served ("mu") and the
     # smallest Euclidean residual reached ("residual", :func:`_halves_residual`)
-    shift: dict[str, float] = {"residual": _length(here.r)}
+    memory: dict[str, float] = {"residual": _length(here.r)}
     watched = 0                      # monotone steps taken since the free one
     best, since_best = math.inf, 0
     mark, since_mark = _length(here.r), 0   # the residual last halved, and iterations since
@@ -341,12 +341,12 @@ def newton(problem: NewtonProblem, u0: FloatArray, scale: float, solver: LinearS
             return done(final, True)
         count["iterations"] += 1
         if here.du is None:
-            nxt, watch = _levenberg(p, solver, here, options, shift), None
+            nxt, watch = _levenberg(p, solver, here, options, memory), None
             if nxt is None:
-                nxt = _residual_descent(p, solver, here, options, shift)
+                nxt = _residual_descent(p, solver, here, options, memory)
         else:
             nxt, watch, free, watched = _next(p, solver, here, options, w, watch, free,
-                                              watched, shift)
+                                              watched, memory)
         if nxt is None:
             origin = here if watch is None else watch
             return done(origin, False, f"no step along the Newton correction reduces the "
@@ -356,7 +356,7 @@ def newton(problem: NewtonProblem, u0: FloatArray, scale: float, solver: LinearS
         lowered = nxt.phi < here.phi - 1e-6 * abs(here.phi)
         previous, here = here, nxt
         length = _length(here.r)
-        shift["residual"] = min(shift["residual"], length)
+        memory["residual"] = min(memory["residual"], length)
         if p.merit is not None and not here.potential:
             p = replace(p, merit=None)   # the potential gave out: |r|^2 / 2 from here on
         if history is not None:
@@ -465,13 +465,13 @@ def _direction(p: NewtonProblem, solver: LinearSolver, at: _Point, matrix: str,
 
 def _next(p: NewtonProblem, solver: LinearSolver, here: _Point, options: NewtonOptions,
           w: FloatArray, watch: _Point | None, free: bool, watched: int,
-          shift: dict[str, float]) -> tuple[_Point | None, _Point | None, bool, int]:
+          memory: dict[str, float]) -> tuple[_Point | None, _Point | None, bool, int]:
     """One iteration from ``here``: the full Newton step, the watchdog, backtracking and the
     shifted convexified step, in that order (see :func:`newton`). Returns the next iterate
     (None when none decreases the merit) and the watchdog's state ``watch, free, watched``."""
     trial = _point(p, here.u + here.step, here)
     if watch is None and (_decreases(trial, here, 1.0, options, solver, w)
-                          or _halves_residual(trial, shift)):
+                          or _halves_residual(trial, memory)):
         return trial, None, True, watched
     cut = (_restrains(p, options) and here.du is not None
            and not np.array_equal(here.step, here.du))   # still cut after the restraint
@@ -489,11 +489,11 @@ def _next(p: NewtonProblem, solver: LinearSolver, here: _Point, options: NewtonO
     nxt = _backtrack(p, origin, 1.0 / 64.0, options, solver if origin is here else None, w) \
         if origin.slope < 0.0 else None
     if nxt is None and origin.potential:
-        nxt = _levenberg(p, solver, origin, options, shift)
+        nxt = _levenberg(p, solver, origin, options, memory)
     if nxt is None and _direction(p, solver, origin, "convex", options) and origin.slope < 0.0:
         nxt = _backtrack(p, origin, options.min_step, options, None, w)
     if nxt is None and origin.potential:
-        nxt = _residual_descent(p, solver, origin, options, shift)
+        nxt = _residual_descent(p, solver, origin, options, memory)
     return nxt, None, free, watched
 
 
@@ -502,9 +502,9 @@ RESIDUAL_FILTER = 0.5
 the solve has reached (:func:`_halves_residual`)."""
 
 
-def _halves_residual(trial: _Point, shift: dict[str, float]) -> bool:
+def _halves_residual(trial: _Point, memory: dict[str, float]) -> bool:
     """Whether ``trial`` lowers the Euclidean residual to :data:`RESIDUAL_FILTER` of the
-    smallest one of the solve so far (``shift["residual"]``).
+    smallest one of the solve so far (``memory["residual"]``).
 
     The potential's gradient is the residual only up to terms no potential gives (the rotated
     momenta of the sections, damping at the step's strain rates); its minimum then lies a
@@ -514,7 +514,7 @@ def _halves_residual(trial: _Point, shift: dict[str, float]) -> bool:
     it halves the smallest residual keeps the quadratic convergence; it cannot cycle, since
     each such step halves a bound that no other step raises. A non-finite residual compares
     false."""
-    return _length(trial.r) <= RESIDUAL_FILTER * shift["residual"]
+    return _length(trial.r) <= RESIDUAL_FILTER * memory["residual"]
 
 
 def _restrains(p: NewtonProblem, options: NewtonOptions) -> bool:
@@ -605,7 +605,7 @@ def _decreases(trial: _Point, at: _Point, alpha: float, options: NewtonOptions,
 
 
 def _levenberg(p: NewtonProblem, solver: LinearSolver, at: _Point, options: NewtonOptions,
-               shift: dict[str, float]) -> _Point | None:
+               memory: dict[str, float]) -> _Point | None:
     """A step that decreases the potential from ``at``: the correction of the convexified
     matrix ``H`` shifted by ``mu D`` (Levenberg-Marquardt), ``mu`` raised fourfold until the
     full step decreases the potential sufficiently.
@@ -621,18 +621,18 @@ def _levenberg(p: NewtonProblem, solver: LinearSolver, at: _Point, options: Newt
     _, H = p.evaluate(at.u, "convex")
     if p.metric is not None:
         scale = np.asarray(p.metric, dtype=float)
-        if "mu" not in shift:
+        if "mu" not in memory:
             acceleration = float(np.max(np.abs(at.r) / scale))
-            shift["mu"] = acceleration / (LEVENBERG_REACH * p.length)
+            memory["mu"] = acceleration / (LEVENBERG_REACH * p.length)
     else:
         scale = np.abs(diagonal(H))
         scale = np.maximum(scale, 1e-12 * float(scale.max(initial=0.0)))
-        shift.setdefault("mu", LEVENBERG_START)
-    found = _shifted(p, solver, H, scale, at.r, shift["mu"], at, lambda x: x.phi, options)
+        memory.setdefault("mu", LEVENBERG_START)
+    found = _shifted(p, solver, H, scale, at.r, memory["mu"], at, lambda x: x.phi, options)
     if found is None:
         return None
     trial, at.du, mu = found
-    shift["mu"] = mu / 4.0
+    memory["mu"] = mu / 4.0
     return trial
 
 
@@ -663,7 +663,7 @@ def _shifted(p: NewtonProblem, solver: LinearSolver, A: IterationMatrix, scale: 
 
 
 def _residual_descent(p: NewtonProblem, solver: LinearSolver, at: _Point,
-                      options: NewtonOptions, shift: dict[str, float]) -> _Point | None:
+                      options: NewtonOptions, memory: dict[str, float]) -> _Point | None:
     """A step that decreases ``|r|^2 / 2`` from ``at`` where no step decreases the potential:
     the Levenberg-Marquardt correction ``(S^T S + mu D) du = -S^T r`` of the exact matrix ``S``
     (``D = diag(S^T S)``), ``mu`` raised fourfold until the step (rotations cut) decreases
@@ -685,11 +685,11 @@ def _residual_descent(p: NewtonProblem, solver: LinearSolver, at: _Point,
     scale = normal.diagonal()
     scale = np.maximum(scale, 1e-12 * float(scale.max(initial=0.0)))
     found = _shifted(replace(p, merit=None), solver, normal, scale, gradient,
-                     shift.get("residual_mu", LEVENBERG_START), at,
+                     memory.get("residual_mu", LEVENBERG_START), at,
                      lambda x: 0.5 * _dot(x.r, x.r), options)
     if found is None:
         return None
-    shift["residual_mu"] = found[2] / 4.0
+    memory["residual_mu"] = found[2] / 4.0
     return found[0]
 
 
