@@ -629,7 +629,7 @@ def cap_rotations(du: FloatArray, rotations: NDArray[np.int64], triples: NDArray
     if len(triples):
         vectors = du[triples]
         length = np.sqrt(np.einsum("ij,ij->i", vectors, vectors))
-        factor = np.minimum(1.0, max_rotation / np.maximum(length, 1e-300))
+        factor = np.minimum(1.0, max_rotation / np.maximum(length, max_rotation))
         out[triples] = vectors * factor[:, None]
     return out
 
