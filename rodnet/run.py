@@ -47,7 +47,7 @@ from rodnet.kernels.schedule import break_times, schedule_of
 from rodnet.kernels.threads import use_threads
 from rodnet.metrics import distance, mouth_area, net_metrics
 from rodnet.models.loads import timings
-from rodnet.models.registry import Built, build, unused_keys
+from rodnet.models.registry import MODELS, Built, build, unused_keys
 from rodnet.models.system import ThreadSystem
 from rodnet.progress import Progress
 from rodnet.state import Configuration, State
@@ -410,13 +410,29 @@ def _stability_advice(p: Prepared) -> str:
     return "reduce simulation.explicit_safety (or simulation.dt with adaptive = false)"
 
 
-def _warnings(stats: StepStats, frame_rotation: float) -> list[str]:
-    """What the user should know about a completed or failed run: a rod element turned past the
-    rotation stop (C52), where the stop's moment, not the section, resisted its rotation."""
+def _warnings(p: Prepared, stats: StepStats, frame_rotation: float) -> list[str]:
+    """What the user should know about a completed or failed run: a clamp on threads without
+    rotations (it holds the node's position only, as a pin does: such threads pass no moment);
+    a static equilibrium that is unstable (:func:`rodnet.integrate.static.unstable`);
+    a rod element turned past the rotation stop (C52), where the stop's moment, not the
+    section, resisted its rotation."""
+    out = []
+    if not len(p.model.rotation_dofs()):
+        label = MODELS[p.built.variant].label
+        out += [f"supports[{i}].fix = 'clamp' holds only the node's position, as fix = 'pin' "
+                f"does (no rotations in {label}: the thread turns freely about the node, "
+                "carrying no bending moment); use model.type = 'cosserat' with bending for a "
+                "clamped rod" for i, support in enumerate(p.scene.supports)
+                if support.dofs is None and support.fix == "clamp"]
+    if stats.extra.get("unstable"):
+        out.append("the static equilibrium found is unstable: its tangent stiffness has a "
+                   "negative eigenvalue (a link or column in compression that would buckle, a "
+                   "chain folded on itself), so a nearby state of lower energy exists; more "
+                   "simulation.load_steps, or a dynamic run with damping, can reach a stable one")
     phi = max(stats.max_element_rotation or 0.0, frame_rotation)
     if phi <= ROTATION_STOP:
-        return []
-    return [f"a rod element turned by {phi:.4f} rad between its end triads, "
+        return out
+    return out + [f"a rod element turned by {phi:.4f} rad between its end triads, "
             f"{phi - ROTATION_STOP:.2g} rad past the rotation stop at {ROTATION_STOP:g} rad "
             "(FORMULATION.md C52): there the stop's stiffness, not the section's, resisted it, "
             "so the rod bends or twists more sharply than its elements resolve; use more "
@@ -453,6 +469,6 @@ def _summary(p: Prepared, arrays: dict[str, NDArray[Any]], stats: StepStats, sta
         "model": {"type": p.scene.model.type, "nodes": structure.n_nodes,
                   "elements": len(structure.segments), "dofs": p.system.n_dof},
         "nodes": structure.selectors, "metrics": metrics,
-        "warnings": _warnings(stats, frame_rotation),
+        "warnings": _warnings(p, stats, frame_rotation),
         "scene": scene_as_dict(p.scene, unused_keys(p.scene)),
     }

@@ -193,3 +193,29 @@ def test_warning_when_an_element_reaches_the_rotation_stop(tmp_path: Path, capsy
     out = tmp_path / "near"
     assert main(["run", str(ROLLUP), "-o", str(out), "--set", "loads[0].moment=[0, 0, 300]", *one]) == 0
     assert json.loads((out / "summary.json").read_text())["warnings"] == []
+
+
+@pytest.mark.parametrize("model", ["lumped", "cosserat"])
+def test_a_clamp_on_threads_without_rotations_is_a_pin_and_says_so(tmp_path: Path, capsys,
+                                                                   model: str) -> None:
+    """A horizontal 1 m cantilever, clamped, a 1 N tip force down: the lumped model has no
+    rotations, so the clamp holds the node as a pin does and the thread hangs straight below
+    it (tip at -1 m, stretched by 1 N / EA), with a warning naming the support; Cosserat rods
+    are clamped, bend by P L^3 / 3 EI (within 1 % at 20 elements) and give no warning."""
+    out = tmp_path / model
+    # fifty load steps: in ten the chain ends folded on itself (test_statics.py)
+    assert main(["run", str(ROLLUP), "-o", str(out), "--quiet", "--set", f"model.type={model}",
+                 "--set", "loads[0].moment=[0, 0, 0]", "--set", "loads[0].force=[0, 0, -1]",
+                 "--set", "simulation.load_steps=50"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    tip = np.load(out / "result.npz")["positions"][-1, summary["nodes"]["beam:end"]]
+    EA, EI = 2.0e11 * np.pi * 0.01**2 / 4, 2.0e11 * np.pi * 0.01**4 / 64
+    if model == "lumped":
+        assert tip == pytest.approx([0.0, 0.0, -(1.0 + 1.0 / EA)], abs=1e-9)
+        assert len(summary["warnings"]) == 1
+        assert summary["warnings"][0].startswith("supports[0].fix = 'clamp' holds only the node's "
+                                                 "position, as fix = 'pin' does")
+        assert "rodnet: warning: supports[0].fix = 'clamp'" in capsys.readouterr().err
+    else:
+        assert tip[2] == pytest.approx(-1.0 / (3.0 * EI), rel=1e-2)
+        assert summary["warnings"] == []

@@ -6,6 +6,7 @@ from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
 from rodnet.errors import SimulationFailed
@@ -66,7 +67,60 @@ def solve_static(system: System, state: State, load_steps: int, options: NewtonO
         done = target
         state.q = q
         on_frame(target, state)
+    if unstable(system, q, done):
+        stats.extra["unstable"] = 1.0
     return stats
+
+
+def unstable(system: System, q: Configuration, load: float) -> bool:
+    """Whether the equilibrium ``q`` at ``load`` is unstable: a saddle of the potential, such as
+    a chain folded on itself with links in compression, which Newton's method converges to as
+    readily as to a minimum (:func:`negative_curvature`). False where the forces have no
+    potential (dead moments, contact): stability is then not a property of the tangent's
+    symmetric part."""
+    if not system.potential_exact or system.potential(q, STATIC_TIME, load) is None:
+        return False
+    return negative_curvature(system, q, load) is not None
+
+
+def negative_curvature(system: System, q: Configuration, load: float) -> FloatArray | None:
+    """A direction (free DOFs) along which the static potential at ``q`` curves down, or None
+    where the tangent stiffness ``K`` is positive semidefinite (no eigenvalue of its symmetric
+    part below ``-SEMIDEFINITE`` times its largest diagonal entry).
+
+    The symmetric part, shifted by that tolerance, is factorised ``P (S + d I) P^T = L D L^T``
+    (SuperLU in symmetric mode without pivoting off the diagonal): ``D`` has as many negative
+    entries as ``S + d I`` has negative eigenvalues (Sylvester's law of inertia), and for the
+    most negative ``D_jj`` the direction ``y = P^T L^-T e_j`` has ``y^T (S + d I) y = D_jj < 0``
+    (Gill and Murray's direction of negative curvature, Nocedal and Wright 2006, section
+    3.4)."""
+    _, K, _ = system.tangents(q, np.zeros(system.n_dof), STATIC_TIME, load)
+    K = sp.csc_matrix(K)
+    S = 0.5 * (K + K.T)
+    largest = float(np.abs(S.diagonal()).max(initial=0.0))
+    if largest == 0.0 or not np.isfinite(S.data).all():
+        return None
+    shifted = (S + SEMIDEFINITE * largest * sp.identity(S.shape[0], format="csc")).tocsc()
+    try:
+        lu = spla.splu(shifted, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                       options={"SymmetricMode": True})
+    except RuntimeError:   # an exactly singular pivot: not a factorisation to judge by
+        return None
+    if not np.array_equal(lu.perm_r, lu.perm_c):   # pivoted off the diagonal: no inertia
+        return None
+    pivots = lu.U.diagonal()
+    j = int(np.argmin(pivots))
+    if not pivots[j] < 0.0:
+        return None
+    unit = np.zeros(S.shape[0])
+    unit[j] = 1.0
+    # S + d I = Pr^T L D L^T Pr with Pr[perm_r[k], k] = 1 (scipy's splu): x = z[perm_r]
+    return spla.spsolve_triangular(lu.L.T.tocsr(), unit, lower=False)[lu.perm_r]
+
+
+SEMIDEFINITE = 1e-9
+"""Eigenvalues of the tangent stiffness above ``-SEMIDEFINITE`` times its largest diagonal entry
+count as non-negative (zero modes such as the free twist of a pinned rod are stable enough)."""
 
 
 def _static_increment(system: System, q_start: Configuration, load: float, options: NewtonOptions,

@@ -30,6 +30,7 @@ changes are made on the model's ``free`` mask with :func:`dataclasses.replace`.
 from __future__ import annotations
 
 import dataclasses
+import json
 import tomllib
 from functools import lru_cache
 from pathlib import Path
@@ -604,3 +605,68 @@ def test_a_slack_cable_between_two_pins_hangs_as_the_elastic_catenary(model: str
     assert np.ptp(H) < 1e-6 * H.mean()
     assert discrete_sag == pytest.approx(sag, rel=1e-3)
     assert discrete_tension == pytest.approx(end_tension, rel=1e-3)
+
+
+# --- unstable equilibria --------------------------------------------------------------------------
+
+def chain_pulled_at_its_tip(steps: int = 10) -> str:
+    """A 1 m steel chain of 20 links (the lumped model, linear axial law), pinned at one end,
+    horizontal, pulled down at the other by 1 N: every state with the links along the pull,
+    each carrying 1 N, is an equilibrium; only the straight one is stable."""
+    scene = (Path(__file__).parents[2] / "validation" / "cases" / "cantilever_rollup"
+             / "scene.toml").read_text()
+    return (scene.replace('type = "cosserat"', 'type = "lumped"')
+            .replace('fix = "clamp"', 'fix = "pin"')
+            .replace("moment = [0.0, 0.0, 616.8502750680849]", "force = [0.0, 0.0, -1.0]")
+            .replace("load_steps = 10", f"load_steps = {steps}"))
+
+
+def test_a_chain_folded_on_itself_is_an_unstable_equilibrium() -> None:
+    """The chain hanging straight below its pin is stable; folded back on itself over two links
+    (which then push with 1 N) it is in equilibrium too, but its stiffness has four negative
+    eigenvalues (two links, two directions across each), and the direction of negative
+    curvature found from the L D L^T factors has y^T K y < 0."""
+    from rodnet.integrate.static import STATIC_TIME, negative_curvature, unstable
+    from rodnet.state import Configuration
+
+    p = prepare(scene_from_toml(chain_pulled_at_its_tip()))
+    system, q0 = p.system, p.state.q
+    EA = 2.0e11 * np.pi * 0.01**2 / 4
+    link = 0.05
+    z = np.concatenate([[0.0], np.cumsum(np.full(20, -link * (1.0 + 1.0 / EA)))])
+    straight = Configuration(np.column_stack([np.zeros(21), np.zeros(21), z]), q0.quat)
+    assert not unstable(system, straight, 1.0)
+    steps = np.array([-1.0] * 16 + [1.0, 1.0] + [-1.0, -1.0])      # links 16 and 17 point up
+    # stretched by the 1 N where they point down, shortened by it where they point up
+    lengths = np.where(steps < 0, link * (1.0 + 1.0 / EA), link * (1.0 - 1.0 / EA))
+    z = np.concatenate([[0.0], np.cumsum(steps * lengths)])
+    folded = Configuration(np.column_stack([np.zeros(21), np.zeros(21), z]), q0.quat)
+    g = system.generalized_force(folded, np.zeros(system.n_dof), STATIC_TIME, 1.0)
+    assert np.abs(g[system.free]).max() < 1e-6      # an equilibrium
+    assert unstable(system, folded, 1.0)
+    _, K, _ = system.tangents(folded, np.zeros(system.n_dof), STATIC_TIME, 1.0)
+    S = 0.5 * (K.toarray() + K.toarray().T)
+    assert np.sum(np.linalg.eigvalsh(S) < 0.0) == 4
+    y = negative_curvature(system, folded, 1.0)
+    assert y is not None and y @ S @ y < 0.0
+
+
+@pytest.mark.parametrize("steps", [10, 50])
+def test_a_run_ending_on_an_unstable_equilibrium_says_so(tmp_path: Path, steps: int) -> None:
+    """Through the command line: whichever equilibrium the load steps reach, the run warns
+    exactly when it has a link in compression (an unstable state), and the straight chain's
+    tip hangs the chain's stretched length below the pin."""
+    scene = tmp_path / "chain.toml"
+    scene.write_text(chain_pulled_at_its_tip(steps))
+    out = tmp_path / "out"
+    assert main(["run", str(scene), "-o", str(out), "--quiet"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    arrays = np.load(out / "result.npz")
+    folded = arrays["tension"][-1].min() < 0.0
+    warned = any(w.startswith("the static equilibrium found is unstable")
+                 for w in summary["warnings"])
+    assert warned == folded
+    if not folded:
+        tip = arrays["positions"][-1, summary["nodes"]["beam:end"]]
+        assert tip == pytest.approx([0.0, 0.0, -(1.0 + 1.0 / (2.0e11 * np.pi * 0.01**2 / 4))],
+                                    abs=1e-9)
