@@ -28,7 +28,9 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
         "`load_steps` equal increments of a load factor; one frame per load step, with the load "
         "factor as its `time`. Structures that only their load holds are solved (a slack cable "
         "between two pins, a net hung from its knots, a rod whose supports leave it free to "
-        "twist); a static scene with a part that has no supported node, and no fixed body to "
+        "twist, a rod or chain on one pin that must turn to its load); an unstable equilibrium is "
+        "left for a stable one where one is found, else reported in the summary's `warnings`; "
+        "a static scene with a part that has no supported node, and no fixed body to "
         "rest on, is refused (no load holds it). See [the rod model](rod_model.md#static-runs)."),
     "simulation.duration": ("s", "Simulated time of a dynamic run; > 0. Not used by static runs."),
     "simulation.dt": (

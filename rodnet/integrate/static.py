@@ -10,6 +10,7 @@ import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
 from rodnet.errors import SimulationFailed
+from rodnet.assembly import add_diagonal
 from rodnet.integrate.frames import StepStats
 from rodnet.integrate.implicit import cap_rotations
 from rodnet.integrate.mixed import MixedStrains
@@ -58,18 +59,130 @@ def solve_static(system: System, state: State, load_steps: int, options: NewtonO
             if not result.converged:
                 halvings += 1
                 stats.rejected_steps += 1
-                if halvings > max_halvings:
-                    raise SimulationFailed(f"no static equilibrium found at load factor {trial:.4g}: "
-                                           f"{result.message}")
-                continue
+                if halvings <= max_halvings:
+                    continue
+                # Newton cannot reach the equilibrium of the increment (a mechanism that must
+                # turn far): relax to it from the last one
+                q_new, found = _relaxed(system, q, target, options, solver, scale, stats,
+                                        history)
+                if not found:
+                    raise SimulationFailed(f"no static equilibrium found at load factor "
+                                           f"{trial:.4g}: {result.message}; relaxing from the "
+                                           f"last equilibrium did not reach it either")
+                trial = target
             q, lam = q_new, trial
             stats.record_step(trial)
         done = target
+        q = _stable(system, q, target, options, solver, scale, stats, history)
         state.q = q
         on_frame(target, state)
-    if unstable(system, q, done):
-        stats.extra["unstable"] = 1.0
     return stats
+
+
+UNSTABLE_KICK = 1e-2
+"""An unstable equilibrium is left along its direction of negative curvature by this fraction of
+the structure's size (its largest translation; rotations at most ``max_rotation``)."""
+
+RELAX_REACH = 0.1
+"""The first pseudo-time step of :func:`_relaxed` would move the most accelerated DOF by about
+this fraction of the structure's size if nothing but its mass resisted."""
+
+RELAX_STEPS = 100
+"""Pseudo-time steps :func:`_relaxed` takes before it gives up."""
+
+RELAX_EASY, RELAX_EASY_ITERATIONS = 0.25, 4
+"""A pseudo-time step solved within this many Newton iterations lowers ``c`` by this factor
+besides the residual's ratio (the next step four times as free, twice as long in time)."""
+
+
+def _stable(system: System, q: Configuration, load: float, options: NewtonOptions,
+            solver: LinearSolver, scale: float, stats: StepStats,
+            history: list[float] | None) -> Configuration:
+    """``q``, an equilibrium at ``load``, or where it is unstable (:func:`unstable`) the
+    equilibrium relaxed to from ``q`` moved along its direction of negative curvature by
+    :data:`UNSTABLE_KICK` of the size: the relaxation lowers the potential at every step and
+    the move lowered it below the saddle's, so it cannot return there. Where that fails or
+    ends unstable too, ``q`` is kept and ``stats.extra["unstable"]`` set (the run warns; each
+    load step's check replaces the last one's)."""
+    stats.extra.pop("unstable", None)
+    direction = negative_curvature(system, q, load) if _has_potential(system, q, load) else None
+    if direction is None:
+        return q
+    free = system.free
+    rot = np.isin(np.flatnonzero(free), system.rotation_dofs())
+    move = float(np.abs(direction[~rot]).max(initial=0.0))
+    turn = float(np.abs(direction[rot]).max(initial=0.0))
+    size = min(UNSTABLE_KICK * system.length_scale / move if move else np.inf,
+               options.max_rotation / turn if turn else np.inf)
+    dq = np.zeros(system.n_dof)
+    dq[free] = size * direction
+    relaxed, found = _relaxed(system, system.retract(q, dq), load, options, solver, scale, stats,
+                              history)
+    if found and negative_curvature(system, relaxed, load) is None:
+        return relaxed
+    stats.extra["unstable"] = 1.0
+    return q
+
+
+def _relaxed(system: System, q: Configuration, load: float, options: NewtonOptions,
+             solver: LinearSolver, scale: float, stats: StepStats,
+             history: list[float] | None) -> tuple[Configuration, bool]:
+    """The equilibrium at ``load`` reached from ``q`` by pseudo-transient continuation (Kelley
+    and Keyes 1998, "Convergence analysis of pseudo-transient continuation", SIAM J. Numer.
+    Anal. 35): Newton solves of ``g(q) + c M u = 0``, ``u`` the move of the step and ``M`` the
+    masses, each the minimum of the potential plus ``c |u|_M^2 / 2`` (a backward-Euler step
+    of damped motion that starts at rest, ``c = 1 / h^2``), with ``c`` lowered as the residual
+    falls (``c_{k+1} = c_k |r_{k+1}| / |r_k|``, switched evolution relaxation, and by
+    :data:`RELAX_EASY` more after an easy step) and raised fourfold where a step's solve
+    fails, until the residual of ``g(q) = 0`` is within Newton's tolerance or a step moves the
+    structure by less than Newton's ``xtol`` (then ``g = -c M u`` is as small as Newton's own
+    converged residuals). Returns the configuration reached and whether it is the
+    equilibrium."""
+    free, zero = system.free, np.zeros(system.n_dof)
+    mass = np.maximum(system.dof_mass[free], 1e-300)
+    tol = options.atol + options.rtol * scale
+
+    def residual(at: Configuration) -> FloatArray:
+        return system.generalized_force(at, zero, STATIC_TIME, load)[free]
+
+    r = residual(q)
+    if not np.isfinite(r).all():
+        return q, False
+    c = float(np.max(np.abs(r) / mass, initial=0.0)) / (RELAX_REACH * system.length_scale)
+    for _ in range(RELAX_STEPS):
+        if float(np.abs(r).max(initial=0.0)) <= tol or c == 0.0:
+            return q, True
+        moved, result = _static_increment(system, q, load, options, solver, scale, history,
+                                          inertia=c * mass)
+        stats.newton_iterations += result.iterations
+        stats.factorizations += result.factorizations
+        if not result.converged:
+            c *= 4.0
+            continue
+        r_next = residual(moved)
+        if _still(q, moved, options.xtol, system.length_scale):
+            return moved, True     # g = -c M u with u within Newton's tolerances: at rest
+        ratio = float(np.linalg.norm(r_next)) / max(float(np.linalg.norm(r)), 1e-300)
+        # an easy step lengthens the next pseudo-time step too
+        c *= min(ratio, 4.0) * (RELAX_EASY if result.iterations <= RELAX_EASY_ITERATIONS else 1.0)
+        q, r = moved, r_next
+    return q, bool(float(np.abs(r).max(initial=0.0)) <= tol)
+
+
+def _still(a: Configuration, b: Configuration, xtol: float, length: float) -> bool:
+    """Whether ``b`` is within Newton's tolerances of ``a``: every node within ``xtol``
+    ``length``, every section within ``xtol`` rad (``|a - b|`` of the quaternions, up to
+    sign, is half the angle between them)."""
+    if float(np.abs(b.x - a.x).max(initial=0.0)) > xtol * length:
+        return False
+    if not len(a.quat):
+        return True
+    turn = np.minimum(np.abs(b.quat - a.quat).max(axis=1), np.abs(b.quat + a.quat).max(axis=1))
+    return float(2.0 * turn.max(initial=0.0)) <= xtol
+
+
+def _has_potential(system: System, q: Configuration, load: float) -> bool:
+    return bool(system.potential_exact) and system.potential(q, STATIC_TIME, load) is not None
 
 
 def unstable(system: System, q: Configuration, load: float) -> bool:
@@ -78,9 +191,7 @@ def unstable(system: System, q: Configuration, load: float) -> bool:
     readily as to a minimum (:func:`negative_curvature`). False where the forces have no
     potential (dead moments, contact): stability is then not a property of the tangent's
     symmetric part."""
-    if not system.potential_exact or system.potential(q, STATIC_TIME, load) is None:
-        return False
-    return negative_curvature(system, q, load) is not None
+    return _has_potential(system, q, load) and negative_curvature(system, q, load) is not None
 
 
 def negative_curvature(system: System, q: Configuration, load: float) -> FloatArray | None:
@@ -125,10 +236,13 @@ count as non-negative (zero modes such as the free twist of a pinned rod are sta
 
 def _static_increment(system: System, q_start: Configuration, load: float, options: NewtonOptions,
                       solver: LinearSolver, scale: float,
-                      history: list[float] | None = None) -> tuple[Configuration, NewtonResult]:
+                      history: list[float] | None = None,
+                      inertia: FloatArray | None = None) -> tuple[Configuration, NewtonResult]:
     """Newton on the configuration: every accepted iterate becomes the base the next
     increments are measured from, so rotations can grow without limit and Newton's matrix is
-    always taken at the base (``T(0) = I``)."""
+    always taken at the base (``T(0) = I``). With ``inertia`` (free DOFs), the equation is
+    ``g + inertia u = 0``, ``u`` the move from ``q_start``: the minimum of the potential plus
+    ``inertia |u|^2 / 2`` (:func:`_relaxed`)."""
     free, zero = system.free, np.zeros(system.n_dof)
     base: dict[str, Any] = {"q": q_start, "u": np.zeros(int(free.sum()))}
     mixed = MixedStrains(system, q_start, options.mixed)
@@ -143,12 +257,14 @@ def _static_increment(system: System, q_start: Configuration, load: float, optio
 
     def evaluate(u: FloatArray, matrix: str | None) -> tuple[FloatArray, sp.csr_matrix | None]:
         q = moved(u)
+        held = 0.0 if inertia is None else inertia * u
         if matrix is None:
-            return system.generalized_force(q, zero, STATIC_TIME, load)[free], None
+            return system.generalized_force(q, zero, STATIC_TIME, load)[free] + held, None
         g, K, _ = system.tangents(q, zero, STATIC_TIME, load,
                                   linearization=mixed.linearization(increment(u), q,
                                                                     matrix == "convex"))
-        return g[free], K.tocsr()
+        K = K.tocsr()
+        return g[free] + held, K if inertia is None else add_diagonal(K, inertia)
 
     def rebase(u: FloatArray) -> None:
         q = moved(u)
@@ -176,7 +292,8 @@ def _static_increment(system: System, q_start: Configuration, load: float, optio
     merit = None
     if system.potential_exact and system.potential(q_start, STATIC_TIME, load) is not None:
         def merit(u: FloatArray) -> float:
-            return system.potential(moved(u), STATIC_TIME, load)  # type: ignore[return-value]
+            held = 0.0 if inertia is None else 0.5 * float(np.dot(inertia * u, u))
+            return system.potential(moved(u), STATIC_TIME, load) + held  # type: ignore[operator]
 
     problem = NewtonProblem(evaluate, shorten, small, merit, weights, rebase,
                             metric=system.dof_mass[free], length=system.length_scale)
