@@ -100,8 +100,9 @@ def _stable(system: System, q: Configuration, load: float, options: NewtonOption
             history: list[float] | None) -> Configuration:
     """``q``, an equilibrium at ``load``, or where it is unstable (:func:`unstable`) the
     equilibrium relaxed to from ``q`` moved along its direction of negative curvature by
-    :data:`UNSTABLE_KICK` of the size: the relaxation lowers the potential at every step and
-    the move lowered it below the saddle's, so it cannot return there. Where that fails or
+    :data:`UNSTABLE_KICK` of the size: the move lowers the potential below the saddle's (to
+    second order: the force is zero there and the curvature negative along the move) and the
+    relaxation lowers it at every step, so it cannot return there. Where that fails or
     ends unstable too, ``q`` is kept and ``stats.extra["unstable"]`` set (the run warns; each
     load step's check replaces the last one's)."""
     stats.extra.pop("unstable", None)
