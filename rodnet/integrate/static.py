@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -33,11 +34,12 @@ def solve_static(system: System, state: State, load_steps: int, options: NewtonO
     from the configuration of ``state`` (moved to the equilibrium, in place).
 
     Each increment is solved by Newton from the previous equilibrium; a failed increment is
-    split in two (up to ``max_halvings`` times). ``on_frame(load, state)`` receives the
+    split in two (up to ``max_halvings`` times), and where that fails too the load step's
+    equilibrium is relaxed to (:func:`_relaxed`); an unstable equilibrium is left for a stable
+    one where one is found (:func:`_stable`). ``on_frame(load, state)`` receives the
     equilibrium at the end of every requested increment (and the unloaded start, load 0).
     """
     stats = StepStats() if stats is None else stats  # filled in place: kept if the run fails
-    solver = LinearSolver()
     zero = np.zeros(system.n_dof)
     q0 = state.q
     q = q0
@@ -48,14 +50,13 @@ def solve_static(system: System, state: State, load_steps: int, options: NewtonO
     scale = largest if largest > 0.0 else 1e-2 * system.force_scale
     state.v = zero
     on_frame(0.0, state)
+    solve = _Solve(system, options, LinearSolver(), scale, stats, history)
     done, target_steps = 0.0, [k / load_steps for k in range(1, load_steps + 1)]
     for target in target_steps:
         lam, halvings = done, 0
         while lam < target - 1e-12:
             trial = min(target, lam + (target - done) / 2 ** halvings)
-            q_new, result = _static_increment(system, q, trial, options, solver, scale, history)
-            stats.newton_iterations += result.iterations
-            stats.factorizations += result.factorizations
+            q_new, result = solve.increment(q, trial)
             if not result.converged:
                 halvings += 1
                 stats.rejected_steps += 1
@@ -63,8 +64,7 @@ def solve_static(system: System, state: State, load_steps: int, options: NewtonO
                     continue
                 # Newton cannot reach the equilibrium of the increment (a mechanism that must
                 # turn far): relax to it from the last one
-                q_new, found = _relaxed(system, q, target, options, solver, scale, stats,
-                                        history)
+                q_new, found = _relaxed(solve, q, target)
                 if not found:
                     raise SimulationFailed(f"no static equilibrium found at load factor "
                                            f"{trial:.4g}: {result.message}; relaxing from the "
@@ -73,7 +73,7 @@ def solve_static(system: System, state: State, load_steps: int, options: NewtonO
             q, lam = q_new, trial
             stats.record_step(trial)
         done = target
-        q = _stable(system, q, target, options, solver, scale, stats, history)
+        q = _stable(solve, q, target)
         state.q = q
         on_frame(target, state)
     return stats
@@ -95,9 +95,29 @@ RELAX_EASY, RELAX_EASY_ITERATIONS = 0.25, 4
 besides the residual's ratio (the next step four times as free, twice as long in time)."""
 
 
-def _stable(system: System, q: Configuration, load: float, options: NewtonOptions,
-            solver: LinearSolver, scale: float, stats: StepStats,
-            history: list[float] | None) -> Configuration:
+@dataclass
+class _Solve:
+    """What the increments of one static run share: the system, Newton's options, the linear
+    solver, the residual scale [N], the counters and the residual history."""
+
+    system: System
+    options: NewtonOptions
+    solver: LinearSolver
+    scale: float
+    stats: StepStats
+    history: list[float] | None
+
+    def increment(self, q: Configuration, load: float, inertia: FloatArray | None = None
+                  ) -> tuple[Configuration, NewtonResult]:
+        """:func:`_static_increment` from ``q`` at ``load``, counted in :attr:`stats`."""
+        moved, result = _static_increment(self.system, q, load, self.options, self.solver,
+                                          self.scale, self.history, inertia)
+        self.stats.newton_iterations += result.iterations
+        self.stats.factorizations += result.factorizations
+        return moved, result
+
+
+def _stable(solve: _Solve, q: Configuration, load: float) -> Configuration:
     """``q``, an equilibrium at ``load``, or where it is unstable (:func:`unstable`) the
     equilibrium relaxed to from ``q`` moved along its direction of negative curvature by
     :data:`UNSTABLE_KICK` of the size: the move lowers the potential below the saddle's (to
@@ -105,6 +125,7 @@ def _stable(system: System, q: Configuration, load: float, options: NewtonOption
     relaxation lowers it at every step, so it cannot return there. Where that fails or
     ends unstable too, ``q`` is kept and ``stats.extra["unstable"]`` set (the run warns; each
     load step's check replaces the last one's)."""
+    system, stats = solve.system, solve.stats
     stats.extra.pop("unstable", None)
     direction = negative_curvature(system, q, load) if _has_potential(system, q, load) else None
     if direction is None:
@@ -114,20 +135,17 @@ def _stable(system: System, q: Configuration, load: float, options: NewtonOption
     move = float(np.abs(direction[~rot]).max(initial=0.0))
     turn = float(np.abs(direction[rot]).max(initial=0.0))
     size = min(UNSTABLE_KICK * system.length_scale / move if move else np.inf,
-               options.max_rotation / turn if turn else np.inf)
+               solve.options.max_rotation / turn if turn else np.inf)
     dq = np.zeros(system.n_dof)
     dq[free] = size * direction
-    relaxed, found = _relaxed(system, system.retract(q, dq), load, options, solver, scale, stats,
-                              history)
+    relaxed, found = _relaxed(solve, system.retract(q, dq), load)
     if found and negative_curvature(system, relaxed, load) is None:
         return relaxed
     stats.extra["unstable"] = 1.0
     return q
 
 
-def _relaxed(system: System, q: Configuration, load: float, options: NewtonOptions,
-             solver: LinearSolver, scale: float, stats: StepStats,
-             history: list[float] | None) -> tuple[Configuration, bool]:
+def _relaxed(solve: _Solve, q: Configuration, load: float) -> tuple[Configuration, bool]:
     """The equilibrium at ``load`` reached from ``q`` by pseudo-transient continuation (Kelley
     and Keyes 1998, "Convergence analysis of pseudo-transient continuation", SIAM J. Numer.
     Anal. 35): Newton solves of ``g(q) + c M u = 0``, ``u`` the move of the step and ``M`` the
@@ -139,9 +157,10 @@ def _relaxed(system: System, q: Configuration, load: float, options: NewtonOptio
     structure by less than Newton's ``xtol`` (then ``g = -c M u`` is as small as Newton's own
     converged residuals). Returns the configuration reached and whether it is the
     equilibrium."""
+    system, options = solve.system, solve.options
     free, zero = system.free, np.zeros(system.n_dof)
     mass = np.maximum(system.dof_mass[free], 1e-300)
-    tol = options.atol + options.rtol * scale
+    tol = options.atol + options.rtol * solve.scale
 
     def residual(at: Configuration) -> FloatArray:
         return system.generalized_force(at, zero, STATIC_TIME, load)[free]
@@ -153,10 +172,7 @@ def _relaxed(system: System, q: Configuration, load: float, options: NewtonOptio
     for _ in range(RELAX_STEPS):
         if float(np.abs(r).max(initial=0.0)) <= tol or c == 0.0:
             return q, True
-        moved, result = _static_increment(system, q, load, options, solver, scale, history,
-                                          inertia=c * mass)
-        stats.newton_iterations += result.iterations
-        stats.factorizations += result.factorizations
+        moved, result = solve.increment(q, load, inertia=c * mass)
         if not result.converged:
             c *= 4.0
             continue
