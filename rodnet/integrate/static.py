@@ -153,10 +153,9 @@ def _relaxed(solve: _Solve, q: Configuration, load: float) -> tuple[Configuratio
     of damped motion that starts at rest, ``c = 1 / h^2``), with ``c`` lowered as the residual
     falls (``c_{k+1} = c_k |r_{k+1}| / |r_k|``, switched evolution relaxation, and by
     :data:`RELAX_EASY` more after an easy step) and raised fourfold where a step's solve
-    fails, until the residual of ``g(q) = 0`` is within Newton's tolerance or a step moves the
-    structure by less than Newton's ``xtol`` (then ``g = -c M u`` is as small as Newton's own
-    converged residuals). Returns the configuration reached and whether it is the
-    equilibrium."""
+    fails, until the residual of ``g(q) = 0`` is within Newton's tolerance, or a step moves the
+    structure by less than Newton's ``xtol`` and Newton's method from there converges. Returns
+    the configuration reached and whether it is the equilibrium."""
     system, options = solve.system, solve.options
     free, zero = system.free, np.zeros(system.n_dof)
     mass = np.maximum(system.dof_mass[free], 1e-300)
@@ -178,7 +177,11 @@ def _relaxed(solve: _Solve, q: Configuration, load: float) -> tuple[Configuratio
             continue
         r_next = residual(moved)
         if _still(q, moved, options.xtol, system.length_scale):
-            return moved, True     # g = -c M u with u within Newton's tolerances: at rest
+            # at rest within Newton's tolerances, though g = -c M u need not be small where
+            # c is large: Newton's method from here decides
+            final, plain = solve.increment(moved, load)
+            if plain.converged:
+                return final, True
         ratio = float(np.linalg.norm(r_next)) / max(float(np.linalg.norm(r)), 1e-300)
         # an easy step lengthens the next pseudo-time step too
         c *= min(ratio, 4.0) * (RELAX_EASY if result.iterations <= RELAX_EASY_ITERATIONS else 1.0)
