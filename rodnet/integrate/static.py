@@ -131,7 +131,7 @@ def _stable(solve: _Solve, q: Configuration, load: float) -> Configuration:
     if direction is None:
         return q
     free = system.free
-    rot = np.isin(np.flatnonzero(free), system.rotation_dofs())
+    rot = _rotation_mask(system)
     move = float(np.abs(direction[~rot]).max(initial=0.0))
     turn = float(np.abs(direction[rot]).max(initial=0.0))
     size = min(UNSTABLE_KICK * system.length_scale / move if move else np.inf,
@@ -160,6 +160,7 @@ def _relaxed(solve: _Solve, q: Configuration, load: float) -> tuple[Configuratio
     free, zero = system.free, np.zeros(system.n_dof)
     mass = np.maximum(system.dof_mass[free], 1e-300)
     tol = options.atol + options.rtol * solve.scale
+    is_rotation = _rotation_mask(system)
 
     def residual(at: Configuration) -> FloatArray:
         return system.generalized_force(at, zero, STATIC_TIME, load)[free]
@@ -176,7 +177,7 @@ def _relaxed(solve: _Solve, q: Configuration, load: float) -> tuple[Configuratio
             c *= 4.0
             continue
         r_next = residual(moved)
-        if _still(q, moved, options.xtol, system.length_scale):
+        if _within_xtol(result.u, is_rotation, options, system.length_scale):
             # at rest within Newton's tolerances, though g = -c M u need not be small where
             # c is large: Newton's method from here decides
             final, plain = solve.increment(moved, load)
@@ -187,18 +188,6 @@ def _relaxed(solve: _Solve, q: Configuration, load: float) -> tuple[Configuratio
         c *= min(ratio, 4.0) * (RELAX_EASY if result.iterations <= RELAX_EASY_ITERATIONS else 1.0)
         q, r = moved, r_next
     return q, bool(float(np.abs(r).max(initial=0.0)) <= tol)
-
-
-def _still(a: Configuration, b: Configuration, xtol: float, length: float) -> bool:
-    """Whether ``b`` is within Newton's tolerances of ``a``: every node within ``xtol``
-    ``length``, every section within ``xtol`` rad (``|a - b|`` of the quaternions, up to
-    sign, is half the angle between them)."""
-    if float(np.abs(b.x - a.x).max(initial=0.0)) > xtol * length:
-        return False
-    if not len(a.quat):
-        return True
-    turn = np.minimum(np.abs(b.quat - a.quat).max(axis=1), np.abs(b.quat + a.quat).max(axis=1))
-    return float(2.0 * turn.max(initial=0.0)) <= xtol
 
 
 def _has_potential(system: System, q: Configuration, load: float) -> bool:
@@ -254,6 +243,19 @@ SEMIDEFINITE = 1e-9
 count as non-negative (zero modes such as the free twist of a pinned rod are stable enough)."""
 
 
+def _rotation_mask(system: System) -> NDArray[np.bool_]:
+    """(free DOFs,) whether each free DOF is a rotation."""
+    return np.isin(np.flatnonzero(system.free), system.rotation_dofs())
+
+
+def _within_xtol(du: FloatArray, is_rotation: NDArray[np.bool_], options: NewtonOptions,
+                 length: float) -> bool:
+    """Whether the move ``du`` (free DOFs) is within Newton's tolerances: every translation
+    within ``xtol`` times ``length`` [m], every rotation within ``xtol`` rad."""
+    return bool(np.abs(du[~is_rotation]).max(initial=0.0) <= options.xtol * length
+                and np.abs(du[is_rotation]).max(initial=0.0) <= options.xtol)
+
+
 def _static_increment(system: System, q_start: Configuration, load: float, options: NewtonOptions,
                       solver: LinearSolver, scale: float,
                       history: list[float] | None = None,
@@ -293,8 +295,8 @@ def _static_increment(system: System, q_start: Configuration, load: float, optio
         base["q"], base["u"] = q, u.copy()
 
     n_free = int(free.sum())
-    rot = np.flatnonzero(np.isin(np.flatnonzero(free), system.rotation_dofs()))
-    trans = np.setdiff1d(np.arange(n_free), rot)
+    is_rotation = _rotation_mask(system)
+    rot, trans = np.flatnonzero(is_rotation), np.flatnonzero(~is_rotation)
     weights = np.ones(n_free)
     weights[trans] = 1.0 / system.length_scale
     position = np.full(system.n_dof, -1)
@@ -306,8 +308,7 @@ def _static_increment(system: System, q_start: Configuration, load: float, optio
         return cap_rotations(du, rot, triples, options.max_rotation)
 
     def small(du: FloatArray) -> bool:
-        return bool(np.abs(du[trans]).max(initial=0.0) <= options.xtol * system.length_scale
-                    and np.abs(du[rot]).max(initial=0.0) <= options.xtol)
+        return _within_xtol(du, is_rotation, options, system.length_scale)
 
     merit = None
     if system.potential_exact and system.potential(q_start, STATIC_TIME, load) is not None:
