@@ -687,34 +687,6 @@ def test_a_chain_pulled_at_its_tip_hangs_straight(tmp_path: Path, steps: int) ->
     assert summary["warnings"] == []
 
 
-NET_ON_ITS_CORNERS = """
-[simulation]
-type = "static"
-gravity = [0.0, 0.0, -9.81]
-load_steps = {steps}
-[model]
-type = "lumped"
-elements_per_thread = 2
-[[materials]]
-name = "kevlar"
-density = 1440.0
-youngs_modulus = 7.0e10
-poisson_ratio = 0.36
-diameter = 1.0e-3
-[net]
-nodes_per_side = 5
-mesh_length = 1.0
-material = "kevlar"
-direction = [0.0, 0.0, 1.0]
-center = [0.0, 0.0, 0.0]
-packing = 0.9
-corner_mass = 0.2
-{supports}
-[output]
-vtk = false
-"""
-
-
 def test_a_slack_net_hung_by_its_corners_sags_to_one_shape(tmp_path: Path) -> None:
     """A 4 m net (lumped, tension-only, two segments per thread) pinned at its four corners 3.6 m
     apart, slack, under its weight: Newton's method alone finds no equilibrium from the flat
@@ -722,13 +694,18 @@ def test_a_slack_net_hung_by_its_corners_sags_to_one_shape(tmp_path: Path) -> No
     springs' energy is convex in the positions, so the equilibrium is the potential's one
     minimum: one load step and ten give the same shape to 1e-9 m, it sags, every segment pulls
     or is slack, and the run reports no unstable equilibrium."""
-    supports = "\n".join(f'[[supports]]\nnode = "net:corner:{k}"\nfix = "pin"' for k in range(4))
+    from tests.conftest import small_net_toml
+
+    scene = tmp_path / "net.toml"
+    scene.write_text(small_net_toml(n=2) + "\n".join(
+        f'[[supports]]\nnode = "net:corner:{k}"\nfix = "pin"' for k in range(4)))
+    static = ["simulation.type=static", "simulation.gravity=[0.0, 0.0, -9.81]",
+              "net.packing=0.9", "net.center=[0.0, 0.0, 0.0]"]
     shapes = []
     for steps in (1, 10):
-        scene = tmp_path / f"net{steps}.toml"
-        scene.write_text(NET_ON_ITS_CORNERS.format(steps=steps, supports=supports))
         out = tmp_path / f"out{steps}"
-        assert main(["run", str(scene), "-o", str(out), "--quiet"]) == 0
+        keys = [a for key in [*static, f"simulation.load_steps={steps}"] for a in ("--set", key)]
+        assert main(["run", str(scene), "-o", str(out), "--quiet", *keys]) == 0
         arrays = np.load(out / "result.npz")
         assert arrays["tension"][-1].min() >= 0.0
         assert json.loads((out / "summary.json").read_text())["warnings"] == []
