@@ -758,12 +758,13 @@ def _atan_series(t2):  # pragma: no cover - compiled
     return 1.0 + t2 * a
 
 
-@numba.njit(inline="always")
-def rod_forces(x, quat, v, W, rods, force, monitor):  # pragma: no cover - compiled
-    """Element forces ``force`` (E, 12) in the element ends' frames from the node state
-    (positions ``x``, velocities ``v`` (N, 3), quaternions ``quat``, body angular velocities
-    ``W`` (R, 3)); returns the largest axial force [N] and the largest element rotation
-    ``|psi|`` [rad]. ``monitor`` (E, 2) is scratch.
+@numba.njit(cache=True, error_model="numpy")
+def rod_forces_range(first, stop, x, quat, v, W, rods, force,
+                     monitor):  # pragma: no cover - compiled
+    """Element forces, rows ``first`` to ``stop - 1`` of ``force`` (E, 12), in the element ends'
+    frames from the node state (positions ``x``, velocities ``v`` (N, 3), quaternions ``quat``,
+    body angular velocities ``W`` (R, 3)), and of ``monitor`` (E, 2): the axial force [N] and
+    the element rotation ``|psi|`` [rad].
 
     The equations of :func:`_state_and_force` (the reference path; they agree to a few ulp),
     each element read straight from the node arrays and its rotation algebra without
@@ -777,8 +778,8 @@ def rod_forces(x, quat, v, W, rods, force, monitor):  # pragma: no cover - compi
     series, stiffness, tau = rods.series, rods.stiffness, rods.tau
     rest_length, reference_strain = rods.rest_length, rods.reference_strain
     tension_only, kink = rods.tension_only, rods.kink
-    beta_angle, gamma_angle = rods.beta_angle, rods.gamma_angle  # no named tuple in a parallel loop
-    for e in numba.prange(rest_length.shape[0]):  # elements are independent: split over threads
+    beta_angle, gamma_angle = rods.beta_angle, rods.gamma_angle
+    for e in range(first, stop):
         i1, i2 = pos[e, 0], pos[e, 1]
         (w1, x1, y1, z1), (a0, a1, a2) = _end_state(quat, W, oq, oR, e, 0, rot[e, 0])
         (w2, x2, y2, z2), (b0, b1, b2) = _end_state(quat, W, oq, oR, e, 1, rot[e, 1])
@@ -849,11 +850,46 @@ def rod_forces(x, quat, v, W, rods, force, monitor):  # pragma: no cover - compi
         # the axial force along the chord: a reversed element's (C51) pulls
         monitor[e, 0] = -N0 if tension_only and N0 < 0.0 else N0
         monitor[e, 1] = phi
+
+
+BLOCKS = 64
+"""Blocks of the parallel kernels' loops (:func:`rod_forces_parallel`,
+:func:`rodnet.kernels.explicit.update_parallel`): numba shares consecutive blocks out to its
+threads, evenly for 2, 4, 8, ... threads. A number, not the pool's size read in the kernel
+(``numba.get_num_threads`` stops numba from caching the kernel)."""
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _largest(monitor):  # pragma: no cover - compiled
+    """The largest axial force [N] and element rotation [rad] of ``monitor`` (E, 2)."""
     peak, phi_max = 0.0, 0.0
     for e in range(monitor.shape[0]):
         peak = max(peak, monitor[e, 0])
         phi_max = max(phi_max, monitor[e, 1])
     return peak, phi_max
+
+
+@numba.njit(cache=True, error_model="numpy")
+def rod_forces(x, quat, v, W, rods, force, monitor):  # pragma: no cover - compiled
+    """Every element's force (:func:`rod_forces_range`) into ``force`` (E, 12); returns the
+    largest axial force [N] and element rotation ``|psi|`` [rad]. ``monitor`` (E, 2) is scratch."""
+    rod_forces_range(0, rods.rest_length.shape[0], x, quat, v, W, rods, force, monitor)
+    return _largest(monitor)
+
+
+@numba.njit(cache=True, parallel=True, error_model="numpy")
+def rod_forces_parallel(x, quat, v, W, rods, force, monitor):  # pragma: no cover - compiled
+    """:func:`rod_forces` with the elements split into :data:`BLOCKS` blocks of consecutive
+    elements, shared out over numba's threads.
+
+    The parallel loop runs over the blocks and calls the serial kernel on each, so numba's
+    parallel passes see a loop of one call (compiling the element's arithmetic once, not once
+    more for the parallel loop: validation/benchmarks/results/cold_start.md)."""
+    n, blocks = rods.rest_length.shape[0], BLOCKS
+    for b in numba.prange(blocks):
+        rod_forces_range(b * n // blocks, (b + 1) * n // blocks, x, quat, v, W, rods, force,
+                         monitor)
+    return _largest(monitor)
 
 
 @numba.njit(cache=True)

@@ -4,6 +4,7 @@ exponential map of so3, for rotations per step on both sides of the switch."""
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from rodnet.integrate.explicit import _bodies, scratch
@@ -55,3 +56,35 @@ def test_a_non_finite_spin_fails_the_step() -> None:
     done = kx.march(x, quat, v, W, _bodies(st), 0.0, 1e-6, 1, 1.0, problem, control,
                     scratch(problem))
     assert done.status == 1
+
+
+def test_the_parallel_loops_step_as_the_serial_ones() -> None:
+    """The parallel kernels split the elements and nodes into blocks (BLOCKS, which the 5 x 5
+    net's element and node counts do not divide): every element and node is still stepped once,
+    with the same arithmetic, so all four loops give the same state to the last bit, turns past
+    the series of exp included."""
+    problem, control, st = _pinned_rod_net()
+    assert problem.rods.rest_length.shape[0] % kx.BLOCKS != 0
+    rng = np.random.default_rng(5)
+    quat0 = so3.quat_multiply(st.q.quat, so3.quat_from_rotvec(rng.normal(size=(len(st.q.quat), 3))
+                                                            * 0.3))
+    W0 = rng.normal(scale=2e3, size=st.spin.shape)
+    v0 = st.velocities + rng.normal(scale=5.0, size=st.velocities.shape)
+    before = numba.get_num_threads()
+    numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
+    try:
+        ends = []
+        for loop in (kx.march, kx.march_parallel, kx.march_free, kx.march_parallel_free):
+            x, quat, v, W = st.q.x.copy(), quat0.copy(), v0.copy(), W0.copy()
+            done = loop(x, quat, v, W, _bodies(st), 0.0, 50 * control.dt, 1, control.dt, problem,
+                        control, scratch(problem))
+            assert done.status == 0 and done.steps >= 50
+            ends.append((done.steps, x, quat, v, W))
+    finally:
+        numba.set_num_threads(before)
+    assert np.any(np.linalg.norm(W0, axis=1) * control.dt > 0.05)   # some turn past the series
+    for steps, *arrays in ends[1:]:
+        assert steps == ends[0][0]
+        for got, expected in zip(arrays, ends[0][1:]):
+            np.testing.assert_array_equal(got, expected)
+    assert not np.array_equal(ends[0][1], st.q.x)
