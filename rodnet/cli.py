@@ -1,6 +1,6 @@
 """The ``rodnet`` command: ``run`` a scene file, ``demo`` the reference deployment, ``validate``
 the validation cases, ``bench`` the work-precision study of the reference deployment, ``render``
-the movie of a run."""
+the movie of a run, ``compile`` the kernels ahead of time."""
 
 from __future__ import annotations
 
@@ -93,6 +93,11 @@ def _parser() -> argparse.ArgumentParser:
                      help="frame size in pixels, even numbers (default 800x600)")
     ren.add_argument("--every", type=_positive_int, default=1, metavar="N",
                      help="draw every N-th saved frame, and the last (default 1: all)")
+    comp = sub.add_parser("compile", help="compile the kernels of the demo and of small rod "
+                          "runs ahead of time, into numba's cache (the README's set-up runs it; "
+                          "the first run after it starts at once)")
+    comp.add_argument("--processes", type=_positive_int, default=None, metavar="N",
+                      help="worker processes (default: two on a machine with two cores or more)")
     for p in (run, demo):
         p.add_argument("-o", "--output", type=Path, default=None,
                        help="output directory (default: the scene's output.directory)")
@@ -155,6 +160,14 @@ def main(argv: list[str] | None = None) -> int:
         return _sweep(args)
     if args.command == "render":
         return _render(args)
+    if args.command == "compile":
+        from rodnet.tools.precompile import precompile
+
+        print("rodnet compile: compiling the kernels of the demo and of small rod runs",
+              file=sys.stderr)
+        seconds = precompile(args.processes, say=lambda line: print(line, file=sys.stderr))
+        print(f"rodnet compile: done in {seconds:.1f} s", file=sys.stderr)
+        return 0
     from rodnet.errors import SceneError
     from rodnet.scene import load_scene
 

@@ -8,7 +8,10 @@ holds numpy, scipy, numba, pyvista and the rest):
 - ``editable``: ``pip install -e SOURCE`` as the README does; every ``__pycache__`` under the
   package is deleted first (a fresh clone: no byte code and no numba kernels);
 - ``installed``: ``pip install SOURCE`` into site-packages (pip writes the byte code, not the
-  kernels); numba's kernel files (``*.nbi``, ``*.nbc``) are deleted after installing.
+  kernels); numba's kernel files (``*.nbi``, ``*.nbc``) are deleted after installing;
+- ``editable+compile``: ``editable``, then ``rodnet compile`` as the README's set-up runs it
+  (the kernels of the demo and of small rod runs compiled ahead of time into the cache beside
+  the sources); its wall and CPU seconds are the column ``compile at install``.
 
 ``NUMBA_CACHE_DIR`` is removed from the environment, so numba caches beside the sources as it
 does for a user. Then ``rodnet demo -o OUT`` (the reference deployment with Cosserat threads and
@@ -41,6 +44,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import shutil
 import subprocess
 import sys
@@ -158,6 +162,18 @@ def run_demo(venv: Path, out: Path, overrides: list[str] = []
     return {k: (w - start, cpu, kids) for k, (w, cpu, kids) in marks.items()}
 
 
+def precompile(venv: Path, cwd: Path) -> tuple[float, float]:
+    """``rodnet compile`` in a child process: its wall and CPU seconds (its workers included)."""
+    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "PYTHONPATH")}
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    start = time.time()
+    subprocess.run([str(_python(venv)), "-m", "rodnet", "compile"], env=env, cwd=cwd, check=True,
+                   capture_output=True)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
+    return time.time() - start, cpu
+
+
 def measure(venv: Path, revs: list[str], modes: list[str], work: Path,
             overrides: list[str] = []) -> list[dict]:
     rows = []
@@ -166,14 +182,15 @@ def measure(venv: Path, revs: list[str], modes: list[str], work: Path,
         commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", rev],
                                 check=True, capture_output=True, text=True).stdout.strip()
         for mode in modes:
-            package = install(venv, source, mode)
+            package = install(venv, source, mode.split("+")[0])
+            compiled = precompile(venv, work) if mode.endswith("+compile") else None
             for run in ("cold", "warm"):
                 load = os.getloadavg()[0]
                 marks = run_demo(venv, work / f"out-{commit}-{mode}-{run}", overrides)
                 kernels = len(list(package.rglob("*.nbi")))
                 row = {"rev": rev, "commit": commit, "mode": mode, "run": run, "load": load,
                        "set": overrides,
-                       "kernels": kernels, "marks": marks}
+                       "kernels": kernels, "marks": marks, "compile": compiled}
                 print(json.dumps(row), flush=True)
                 rows.append(row)
     return rows
@@ -194,8 +211,8 @@ def _cell(marks: dict, phase: str, previous: str | None) -> str:
 
 def table(rows: list[dict]) -> str:
     lines = ["| revision | install | run | load | kernel files | import | first frame | run "
-             "after it | render | total | cold - warm |",
-             "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+             "after it | render | total | cold - warm | compile at install |",
+             "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     warm = {(r["commit"], r["mode"]): r["marks"] for r in rows if r["run"] == "warm"}
     for r in rows:
         m = r["marks"]
@@ -207,8 +224,11 @@ def table(rows: list[dict]) -> str:
             w = warm[(r["commit"], r["mode"])]
             extra = (f"{m['total'][0] - w['total'][0]:.1f} "
                      f"({sum(m['total'][1:]) - sum(w['total'][1:]):.1f})")
+        compiled = r.get("compile")
+        at_install = f"{compiled[0]:.1f} ({compiled[1]:.1f})" if compiled and r["run"] == "cold" \
+            else ""
         lines.append(f"| {r['rev']} ({r['commit']}) | {r['mode']} | {r['run']} | {r['load']:.1f} "
-                     f"| {r['kernels']} | " + " | ".join(cells) + f" | {extra} |")
+                     f"| {r['kernels']} | " + " | ".join(cells) + f" | {extra} | {at_install} |")
     return "\n".join(lines)
 
 
@@ -217,7 +237,8 @@ def main() -> None:
     parser.add_argument("--venv", type=Path, required=True,
                         help="virtual environment with rodnet's dependencies ('.[viz]')")
     parser.add_argument("--rev", action="append", required=True, help="git revision (repeat)")
-    parser.add_argument("--mode", action="append", choices=("editable", "installed"),
+    parser.add_argument("--mode", action="append",
+                        choices=("editable", "installed", "editable+compile"),
                         help="kinds of install (default: both)")
     parser.add_argument("--set", dest="overrides", action="append", default=[],
                         metavar="KEY=VALUE", help="rodnet demo --set (repeatable), e.g. "

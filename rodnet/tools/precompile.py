@@ -1,0 +1,113 @@
+"""``rodnet compile``: compile the kernels of the common runs ahead of time, into numba's cache.
+
+rodnet's kernels are compiled by numba on their first call and cached on disk
+(:mod:`rodnet.kernels.cache`), so only the first run after installing pays for compiling them
+(validation/benchmarks/results/cold_start.md). This command pays it once, at install time (the
+README's set-up runs it): it runs each scene of :func:`runs` for a few steps, with its results
+written to a temporary folder and thrown away, in two processes where the machine has two cores.
+A later run of a scene that needs other kernels (contact with bodies, another integrator) still
+compiles those on its first call.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+import time
+from concurrent.futures import ProcessPoolExecutor
+from multiprocessing import get_context
+from typing import NamedTuple
+
+
+class Warm(NamedTuple):
+    """A short run whose kernels are compiled: ``label``, the built-in reference scene's
+    ``overrides`` or the TOML ``text`` of a scene, and ``threads`` (None: as a run chooses, every
+    core for the reference net)."""
+
+    label: str
+    overrides: tuple[str, ...] = ()
+    text: str | None = None
+    threads: int | None = None
+
+
+SHORT = ("simulation.duration=0.02", "output.frame_interval=0.01")
+"""Two frame intervals: every kernel of the run is called, the frames' outputs included."""
+
+ROD = """
+[simulation]
+type = "{type}"
+duration = 0.004
+dt = 0.001
+gravity = [0.0, 0.0, -9.81]
+[model]
+type = "cosserat"
+[[materials]]
+name = "steel"
+density = 7800.0
+youngs_modulus = 2.0e11
+poisson_ratio = 0.3
+diameter = 0.01
+[[rods]]
+name = "beam"
+material = "steel"
+points = [[0, 0, 0], [1, 0, 0]]
+elements = 8
+[[supports]]
+node = "beam:start"
+fix = "clamp"
+[output]
+vtk = false
+frame_interval = 0.002
+"""
+"""A small cantilever under gravity, static or dynamic at the default integrator."""
+
+
+def runs() -> tuple[Warm, ...]:
+    """The short runs whose kernels are compiled: the demo's two scenes and a small rod at the
+    default integrator and static."""
+    from rodnet.demo import ROD_SETTINGS
+
+    return (
+        Warm("rodnet demo: Cosserat threads, explicit, every core", (*ROD_SETTINGS, *SHORT)),
+        Warm("rodnet demo: Cosserat threads, explicit, one thread", (*ROD_SETTINGS, *SHORT), None,
+             1),
+        Warm("rodnet demo: lumped reference", SHORT),
+        Warm("Cosserat rod, dynamic, default integrator", (), ROD.format(type="dynamic")),
+        Warm("Cosserat rod, static", (), ROD.format(type="static")),
+    )
+
+
+def _warm(run: Warm, folder: str) -> tuple[str, float, str]:
+    """Run ``run`` into ``folder``; returns its label, the CPU seconds it took and its status."""
+    from rodnet.data import reference_scene_text
+    from rodnet.run import run as run_scene
+    from rodnet.scene import scene_from_toml
+
+    start = time.process_time()
+    text = reference_scene_text() if run.text is None else run.text
+    scene = scene_from_toml(text, list(run.overrides), source=f"rodnet compile ({run.label})")
+    result = run_scene(scene, folder, progress=False, threads=run.threads)
+    return run.label, time.process_time() - start, str(result.summary.get("status"))
+
+
+def precompile(processes: int | None = None, say=print) -> float:  # type: ignore[no-untyped-def]
+    """Compile the kernels of :func:`runs` into numba's cache; returns the wall seconds taken.
+
+    Parameters
+    ----------
+    processes : int, optional
+        Worker processes; default: two where the machine has two cores or more.
+    say : callable
+        Receives one line per run done.
+    """
+    import rodnet  # noqa: F401  (refreshes the cache's stamp before the workers start)
+
+    todo = runs()
+    workers = processes or min(2, os.cpu_count() or 1)
+    start = time.time()
+    with tempfile.TemporaryDirectory(prefix="rodnet-compile-") as work:
+        folders = [os.path.join(work, str(k)) for k in range(len(todo))]
+        with ProcessPoolExecutor(workers, mp_context=get_context("spawn")) as pool:
+            for label, cpu, status in pool.map(_warm, todo, folders):
+                say(f"  {label}: {cpu:.1f} CPU s ({status})")
+    return time.time() - start

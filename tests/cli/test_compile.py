@@ -1,0 +1,59 @@
+"""``rodnet compile``: the kernels of the demo compiled ahead of time into numba's cache, so that
+the demo's first run after it compiles nothing."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from rodnet.cli import main
+
+PROBE = r"""
+import json, sys
+from numba.core import event
+compiled = []
+class Listener(event.Listener):
+    def on_start(self, e):
+        compiled.append(e.data["dispatcher"].py_func.__qualname__)
+    def on_end(self, e):
+        pass
+event.register("numba:compile", Listener())
+from rodnet.demo import demo_scenes
+from rodnet.run import run
+for threads in (None, 1):
+    for label, scene, folder in demo_scenes(["simulation.duration=0.02"], False):
+        assert run(scene, sys.argv[1] + f"/{threads}/{folder}", progress=False,
+                   threads=threads).summary["status"] == "ok"
+print(json.dumps(compiled))
+"""
+
+
+def test_compile_refuses_a_bad_process_count(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit):
+        main(["compile", "--processes", "0"])
+    assert "--processes" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_after_compile_the_demo_compiles_nothing(tmp_path: Path) -> None:
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
+    done = subprocess.run([sys.executable, "-m", "rodnet", "compile"], env=env, cwd=tmp_path,
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert done.stderr.count("(ok)") == 5
+    probe = subprocess.run([sys.executable, "-c", PROBE, str(tmp_path / "runs")], env=env,
+                           cwd=tmp_path, capture_output=True, text=True)
+    assert probe.returncode == 0, probe.stderr
+    assert json.loads(probe.stdout.splitlines()[-1]) == []
+    # and a fresh cache does compile them (the probe sees compiling)
+    env["NUMBA_CACHE_DIR"] = str(tmp_path / "fresh")
+    probe = subprocess.run([sys.executable, "-c", PROBE, str(tmp_path / "again")], env=env,
+                           cwd=tmp_path, capture_output=True, text=True)
+    assert probe.returncode == 0, probe.stderr
+    assert "march_parallel_free" in json.loads(probe.stdout.splitlines()[-1]) or \
+        "march_free" in json.loads(probe.stdout.splitlines()[-1])
