@@ -41,6 +41,20 @@ SERIES_ARGUMENTS = (_SERIES, *_SWITCH_ANGLES)
 """The ``series, beta_angle, gamma_angle`` arguments of the compiled element loops: the Taylor
 series of the coefficients (C11) and the angles below which they are used."""
 
+BLOCKS = 64
+"""Blocks of consecutive elements (or nodes) in the parallel kernels' loops
+(:func:`rod_forces`, :func:`_state_and_force`, :func:`rodnet.kernels.explicit._update`): each
+loop runs over the blocks and calls a serial kernel on each (:func:`rod_forces_range`,
+:func:`state_and_force_range`, :func:`rodnet.kernels.explicit.update_range`), so numba's parallel
+passes see a loop of one call and the element's arithmetic is compiled once, not once more inside
+every parallel entry point (that was most of compiling a run:
+validation/benchmarks/results/cold_start.md). The loops are ``inline="always"``: their
+``prange`` is a parallel loop in a ``parallel=True`` entry point and a plain loop elsewhere
+(numba's cache breaks on compiled functions that call ``parallel=True`` ones:
+docs/architecture.md). numba shares the blocks out to its threads, evenly for 2, 4, 8, ...
+threads. A number, not the pool's size read in the kernel (``numba.get_num_threads`` stops numba
+from caching the kernel)."""
+
 
 def _as_float(a: ArrayLike) -> FloatArray:
     """C-contiguous float64 (a no-op for the usual inputs): one compiled specialisation."""
@@ -521,12 +535,13 @@ def _element_force(N0, N1, N2, M0, M1, M2, psi, R, g, beta, gamma, force,
     force[e, 11] = 0.5 * h2 - beta * ph2 + (AM2 - pm2)
 
 
-@numba.njit(inline="always")
-def _state_and_force(rest_length, reference_strain, stiffness, tau, x, q, velocity, tension_only,
-                     kink, series, beta_angle, gamma_angle, step_reference, inv_h, force, psi_out,
-                     R_out, g_out, coefficients, constitutive, velocity9,
-                     monitor_out):  # pragma: no cover - compiled
-    """Internal force ``S [R_m N, P2 h - A M, P2^T h + A^T M]``, ``h = N x g``, per element.
+@numba.njit(cache=True)
+def state_and_force_range(first, stop, rest_length, reference_strain, stiffness, tau, x, q,
+                          velocity, tension_only, kink, series, beta_angle, gamma_angle,
+                          step_reference, inv_h, force, psi_out, R_out, g_out, coefficients,
+                          constitutive, velocity9, monitor_out):  # pragma: no cover - compiled
+    """Internal force ``S [R_m N, P2 h - A M, P2^T h + A^T M]``, ``h = N x g``, of the elements
+    ``first`` to ``stop - 1``.
 
     When ``step_reference`` (n, 6) has ``n`` rows, the strain rates are an implicit step's,
     ``(eps - step_reference) inv_h`` (C53), instead of those of the velocities.
@@ -539,7 +554,7 @@ def _state_and_force(rest_length, reference_strain, stiffness, tau, x, q, veloci
     store = psi_out.shape[0] > 0
     store_monitor = monitor_out.shape[0] > 0
     stepped = step_reference.shape[0] > 0
-    for e in numba.prange(rest_length.shape[0]):  # elements are independent: split over threads
+    for e in range(first, stop):
         ((p0, p1, p2), R, (g0, g1, g2), phi, beta, gamma, eps, rate,
          ((vd0, vd1, vd2), (a0, a1, a2), (b0, b1, b2))) = _strains_and_rates(
             rest_length, reference_strain, x, q, velocity, e, series, beta_angle, gamma_angle)
@@ -585,6 +600,22 @@ def _state_and_force(rest_length, reference_strain, stiffness, tau, x, q, veloci
             velocity9[e, 6], velocity9[e, 7], velocity9[e, 8] = b0, b1, b2
 
 
+@numba.njit(inline="always")
+def _state_and_force(rest_length, reference_strain, stiffness, tau, x, q, velocity, tension_only,
+                     kink, series, beta_angle, gamma_angle, step_reference, inv_h, force, psi_out,
+                     R_out, g_out, coefficients, constitutive, velocity9,
+                     monitor_out):  # pragma: no cover - compiled
+    """:func:`state_and_force_range` of every element, in :data:`BLOCKS` blocks over numba's
+    threads in a ``parallel=True`` caller."""
+    n = rest_length.shape[0]
+    for b in numba.prange(BLOCKS):
+        state_and_force_range(b * n // BLOCKS, (b + 1) * n // BLOCKS, rest_length,
+                              reference_strain, stiffness, tau, x, q, velocity, tension_only,
+                              kink, series, beta_angle, gamma_angle, step_reference, inv_h, force,
+                              psi_out, R_out, g_out, coefficients, constitutive, velocity9,
+                              monitor_out)
+
+
 @numba.njit(cache=True, parallel=True)
 def _internal_force_kernel(rest_length, reference_strain, stiffness, tau, x, q, velocity,
                            tension_only, kink, series, beta_angle, gamma_angle, step_reference,
@@ -592,9 +623,10 @@ def _internal_force_kernel(rest_length, reference_strain, stiffness, tau, x, q, 
     n = rest_length.shape[0]
     force = np.empty((n, 12))
     none1, none2, none3 = np.empty((0, 3)), np.empty((0, 3, 3)), np.empty((0, 4))
+    none4, none5, none6 = np.empty((0, 18)), np.empty((0, 9)), np.empty((0, 2))
     _state_and_force(rest_length, reference_strain, stiffness, tau, x, q, velocity, tension_only,
                      kink, series, beta_angle, gamma_angle, step_reference, inv_h, force, none1,
-                     none2, none1, none3, np.empty((0, 18)), np.empty((0, 9)), np.empty((0, 2)))
+                     none2, none1, none3, none4, none5, none6)
     return force
 
 
@@ -759,14 +791,17 @@ def _atan_series(t2):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, error_model="numpy")
-def rod_forces_range(first, stop, x, quat, v, W, rods, force,
-                     monitor):  # pragma: no cover - compiled
+def rod_forces_range(first, stop, x, quat, v, W, pos, rot, oq, oR, series, stiffness, tau,
+                     rest_length, reference_strain, tension_only, kink, beta_angle, gamma_angle,
+                     force, monitor):  # pragma: no cover - compiled
     """Element forces, rows ``first`` to ``stop - 1`` of ``force`` (E, 12), in the element ends'
     frames from the node state (positions ``x``, velocities ``v`` (N, 3), quaternions ``quat``,
     body angular velocities ``W`` (R, 3)), and of ``monitor`` (E, 2): the axial force [N] and
-    the element rotation ``|psi|`` [rad].
+    the element rotation ``|psi|`` [rad]. The elements' arrays are the fields of
+    :class:`RodElements` (``pos_nodes``, ``rot_nodes``, ``offset_q``, ``offset_R``, ...), one
+    by one: numba's parallel loops take no named tuples.
 
-    The equations of :func:`_state_and_force` (the reference path; they agree to a few ulp),
+    The equations of :func:`state_and_force_range` (the reference path; they agree to a few ulp),
     each element read straight from the node arrays and its rotation algebra without
     trigonometry: with ``r = conj(q1) q2 = (c, s n)`` scaled to ``|r| = 1``, ``c = cos(phi/2)``,
     ``s = sin(phi/2)``, the half rotation ``exp_q(psi/2) = (cos(phi/4), sin(phi/4) n)`` follows
@@ -774,11 +809,6 @@ def rod_forces_range(first, stop, x, quat, v, W, rods, force,
     ``cot(phi/2) = c / s`` gives ``gamma``, and the angle is ``phi = 4 atan(t)`` by its Taylor
     series below 0.5 rad (``atan2`` above).
     """
-    pos, rot, oq, oR = rods.pos_nodes, rods.rot_nodes, rods.offset_q, rods.offset_R
-    series, stiffness, tau = rods.series, rods.stiffness, rods.tau
-    rest_length, reference_strain = rods.rest_length, rods.reference_strain
-    tension_only, kink = rods.tension_only, rods.kink
-    beta_angle, gamma_angle = rods.beta_angle, rods.gamma_angle
     for e in range(first, stop):
         i1, i2 = pos[e, 0], pos[e, 1]
         (w1, x1, y1, z1), (a0, a1, a2) = _end_state(quat, W, oq, oR, e, 0, rot[e, 0])
@@ -852,13 +882,6 @@ def rod_forces_range(first, stop, x, quat, v, W, rods, force,
         monitor[e, 1] = phi
 
 
-BLOCKS = 64
-"""Blocks of the parallel kernels' loops (:func:`rod_forces_parallel`,
-:func:`rodnet.kernels.explicit.update_parallel`): numba shares consecutive blocks out to its
-threads, evenly for 2, 4, 8, ... threads. A number, not the pool's size read in the kernel
-(``numba.get_num_threads`` stops numba from caching the kernel)."""
-
-
 @numba.njit(cache=True, error_model="numpy")
 def _largest(monitor):  # pragma: no cover - compiled
     """The largest axial force [N] and element rotation [rad] of ``monitor`` (E, 2)."""
@@ -869,26 +892,21 @@ def _largest(monitor):  # pragma: no cover - compiled
     return peak, phi_max
 
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(inline="always")
 def rod_forces(x, quat, v, W, rods, force, monitor):  # pragma: no cover - compiled
-    """Every element's force (:func:`rod_forces_range`) into ``force`` (E, 12); returns the
-    largest axial force [N] and element rotation ``|psi|`` [rad]. ``monitor`` (E, 2) is scratch."""
-    rod_forces_range(0, rods.rest_length.shape[0], x, quat, v, W, rods, force, monitor)
-    return _largest(monitor)
-
-
-@numba.njit(cache=True, parallel=True, error_model="numpy")
-def rod_forces_parallel(x, quat, v, W, rods, force, monitor):  # pragma: no cover - compiled
-    """:func:`rod_forces` with the elements split into :data:`BLOCKS` blocks of consecutive
-    elements, shared out over numba's threads.
-
-    The parallel loop runs over the blocks and calls the serial kernel on each, so numba's
-    parallel passes see a loop of one call (compiling the element's arithmetic once, not once
-    more for the parallel loop: validation/benchmarks/results/cold_start.md)."""
-    n, blocks = rods.rest_length.shape[0], BLOCKS
-    for b in numba.prange(blocks):
-        rod_forces_range(b * n // blocks, (b + 1) * n // blocks, x, quat, v, W, rods, force,
-                         monitor)
+    """Every element's force (:func:`rod_forces_range`, in :data:`BLOCKS` blocks over numba's
+    threads in a ``parallel=True`` caller) into ``force`` (E, 12); returns the largest axial
+    force [N] and element rotation ``|psi|`` [rad]. ``monitor`` (E, 2) is scratch."""
+    pos, rot, oq, oR = rods.pos_nodes, rods.rot_nodes, rods.offset_q, rods.offset_R
+    series, stiffness, tau = rods.series, rods.stiffness, rods.tau
+    rest_length, reference_strain = rods.rest_length, rods.reference_strain
+    tension_only, kink = rods.tension_only, rods.kink
+    beta_angle, gamma_angle = rods.beta_angle, rods.gamma_angle  # no named tuple in a parallel loop
+    n = rest_length.shape[0]
+    for b in numba.prange(BLOCKS):
+        rod_forces_range(b * n // BLOCKS, (b + 1) * n // BLOCKS, x, quat, v, W, pos, rot, oq, oR,
+                         series, stiffness, tau, rest_length, reference_strain, tension_only,
+                         kink, beta_angle, gamma_angle, force, monitor)
     return _largest(monitor)
 
 

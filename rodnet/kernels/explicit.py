@@ -23,9 +23,8 @@ reach (E5), and to 0.9 times the travel-limited step when a point near a body wo
 than its travel limit (E3); the step is then redone from the same state (fixed steps divide the
 rest of the interval anew).
 
-:func:`march` and :func:`march_parallel` are the same loop (:func:`_loop`), calling the rod
-element forces and the update on one thread (:func:`rod_forces`, :func:`update`) or split over
-numba's threads (:func:`rod_forces_parallel`, :func:`update_parallel`), :func:`march_free` and
+:func:`march` and :func:`march_parallel` are the same loop (:func:`_loop`) compiled without and
+with numba's parallel loops over blocks of elements and nodes, :func:`march_free` and
 :func:`march_parallel_free` the same without contact, for problems without bodies
 (:func:`march_for` picks one); :func:`march_nodes` is the loop of problems
 with position nodes only (the lumped model, cable and Kirchhoff threads without bodies), fused
@@ -44,8 +43,7 @@ import numpy as np
 from rodnet.kernels.contact_compiled import (ContactData, ContactScratch, accumulate_contact,
                                              body_speed, forget_clearance, largest_speed,
                                              select_bodies)
-from rodnet.kernels.cosserat_compiled import (BLOCKS, RodElements, rod_forces,
-                                              rod_forces_parallel, scatter_forces)
+from rodnet.kernels.cosserat_compiled import BLOCKS, RodElements, rod_forces, scatter_forces
 from rodnet.kernels.hinge import Hinges
 from rodnet.kernels.rigid_body import advance_bodies
 from rodnet.kernels.schedule import LoadSchedule, load_factor
@@ -191,39 +189,31 @@ def _apply_loads(t, quat, loads, f_node, m_node):  # pragma: no cover - compiled
                 f_node[a, k] += scale * loads.force[j, k]
 
 
-def _forces_with(rod_kernel):  # type: ignore[no-untyped-def]
-    """The forces of the loop, with the rod elements' forces from ``rod_kernel``
-    (:func:`rod_forces` or :func:`rod_forces_parallel`)."""
+@numba.njit(inline="always")
+def _forces(t, x, quat, v, W, p, s):  # pragma: no cover - compiled
+    """Every force and moment on the nodes at time ``t`` into ``s.f_node``, ``s.m_node``,
+    contact aside; returns the largest axial force [N] and element rotation [rad]."""
+    f_node, m_node = s.f_node, s.m_node
+    for i in range(f_node.shape[0]):
+        for k in range(3):
+            f_node[i, k] = p.nodes.weight[i, k]
+    m_node[:, :] = 0.0
+    _apply_loads(t, quat, p.loads, f_node, m_node)
+    peak, phi = 0.0, 0.0
+    seg = p.segments
+    if seg.pairs.shape[0] > 0:
+        peak = segment_forces(x, v, f_node, seg.pairs, seg.rest_length, seg.EA, seg.etaA,
+                              seg.kink_strain, seg.tension_only)
+    h = p.hinges
+    if h.nodes.shape[0] > 0:
+        hinge_forces(x, v, f_node, h.nodes, h.stiffness, h.tau, h.rest)
+    rods = p.rods
+    if rods.rest_length.shape[0] > 0:
+        rod_peak, phi = rod_forces(x, quat, v, W, rods, s.force, s.monitor)
+        peak = max(peak, rod_peak)
+        scatter_forces(s.force, rods.pos_nodes, rods.rot_nodes, rods.offset_R, f_node, m_node)
+    return peak, phi
 
-    @numba.njit(inline="always")
-    def forces_at(t, x, quat, v, W, p, s):  # pragma: no cover - compiled
-        """Every force and moment on the nodes at time ``t`` into ``s.f_node``, ``s.m_node``,
-        contact aside; returns the largest axial force [N] and element rotation [rad]."""
-        f_node, m_node = s.f_node, s.m_node
-        for i in range(f_node.shape[0]):
-            for k in range(3):
-                f_node[i, k] = p.nodes.weight[i, k]
-        m_node[:, :] = 0.0
-        _apply_loads(t, quat, p.loads, f_node, m_node)
-        peak, phi = 0.0, 0.0
-        seg = p.segments
-        if seg.pairs.shape[0] > 0:
-            peak = segment_forces(x, v, f_node, seg.pairs, seg.rest_length, seg.EA, seg.etaA,
-                                  seg.kink_strain, seg.tension_only)
-        h = p.hinges
-        if h.nodes.shape[0] > 0:
-            hinge_forces(x, v, f_node, h.nodes, h.stiffness, h.tau, h.rest)
-        rods = p.rods
-        if rods.rest_length.shape[0] > 0:
-            rod_peak, phi = rod_kernel(x, quat, v, W, rods, s.force, s.monitor)
-            peak = max(peak, rod_peak)
-            scatter_forces(s.force, rods.pos_nodes, rods.rot_nodes, rods.offset_R, f_node, m_node)
-        return peak, phi
-
-    return forces_at
-
-
-_forces = _forces_with(rod_forces)
 
 
 @numba.njit(inline="always")
@@ -261,14 +251,14 @@ def _turn_far(quat, W, h):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, error_model="numpy")
-def update_range(nodes_from, nodes_to, rot_from, rot_to, x, quat, v, W, f_node, m_node, nodes,
-                 rotations, h):  # pragma: no cover - compiled
+def update_range(nodes_from, nodes_to, rot_from, rot_to, x, quat, v, W, f_node, m_node, inv_mass,
+                 inertia, inv_inertia, h):  # pragma: no cover - compiled
     """The symplectic Euler update (S9), (C46), (C47) in place of the position nodes
     ``nodes_from`` to ``nodes_to - 1`` and the rotation nodes ``rot_from`` to ``rot_to - 1``;
     returns how many nodes became non-finite and how many rotation nodes turned too far for
-    the series of ``exp`` (left for :func:`_turn_far`)."""
+    the series of ``exp`` (left for :func:`_turn_far`). ``inv_mass`` is :class:`Nodes`' field,
+    ``inertia`` and ``inv_inertia`` :class:`Rotations`'."""
     bad = 0
-    inv_mass = nodes.inv_mass
     for i in range(nodes_from, nodes_to):
         for k in range(3):
             v[i, k] += h * f_node[i, k] * inv_mass[i, k]
@@ -279,7 +269,7 @@ def update_range(nodes_from, nodes_to, rot_from, rot_to, x, quat, v, W, f_node, 
     # arrays, fixed strides): every node by the series of exp below 0.05 rad; a node turned
     # further in one step keeps its quaternion there and is redone by _turn_far
     Wf, Q, M = W.reshape(-1), quat.reshape(-1), m_node.reshape(-1)
-    J, Ji = rotations.inertia.reshape(-1), rotations.inv_inertia.reshape(-1)
+    J, Ji = inertia.reshape(-1), inv_inertia.reshape(-1)
     far = 0
     for r in range(rot_from, rot_to):
         a, b = 3 * r, 4 * r
@@ -306,28 +296,18 @@ def update_range(nodes_from, nodes_to, rot_from, rot_to, x, quat, v, W, f_node, 
     return bad, far
 
 
-@numba.njit(cache=True, error_model="numpy")
-def update(x, quat, v, W, f_node, m_node, nodes, rotations, h):  # pragma: no cover - compiled
-    """One symplectic Euler update (S9), (C46), (C47) in place (:func:`update_range` on every
-    node); False when the state became non-finite."""
-    bad, far = update_range(0, x.shape[0], 0, W.shape[0], x, quat, v, W, f_node, m_node, nodes,
-                            rotations, h)
-    if far:
-        bad += _turn_far(quat, W, h)
-    return bad == 0
-
-
-@numba.njit(cache=True, parallel=True, error_model="numpy")
-def update_parallel(x, quat, v, W, f_node, m_node, nodes, rotations,
-                    h):  # pragma: no cover - compiled
-    """:func:`update` with the nodes split into :data:`BLOCKS` blocks shared out over numba's
-    threads (as :func:`rodnet.kernels.cosserat_compiled.rod_forces_parallel`)."""
-    n, r, blocks = x.shape[0], W.shape[0], BLOCKS
+@numba.njit(inline="always")
+def _update(x, quat, v, W, f_node, m_node, nodes, rotations, h):  # pragma: no cover - compiled
+    """One symplectic Euler update (S9), (C46), (C47) in place (:func:`update_range` in
+    :data:`BLOCKS` blocks of nodes over numba's threads in a ``parallel=True`` caller); False
+    when the state became non-finite."""
+    n, r = x.shape[0], W.shape[0]
+    inv_mass, inertia, inv_inertia = nodes.inv_mass, rotations.inertia, rotations.inv_inertia
     bad, far = 0, 0
-    for b in numba.prange(blocks):
-        bad_b, far_b = update_range(b * n // blocks, (b + 1) * n // blocks, b * r // blocks,
-                                    (b + 1) * r // blocks, x, quat, v, W, f_node, m_node, nodes,
-                                    rotations, h)
+    for b in numba.prange(BLOCKS):  # no named tuple in a parallel loop
+        bad_b, far_b = update_range(b * n // BLOCKS, (b + 1) * n // BLOCKS, b * r // BLOCKS,
+                                    (b + 1) * r // BLOCKS, x, quat, v, W, f_node, m_node,
+                                    inv_mass, inertia, inv_inertia, h)
         bad += bad_b
         far += far_b
     if far:
@@ -369,16 +349,11 @@ def _interp(x, xp, fp):  # pragma: no cover - compiled
     return y
 
 
-def _loop(with_bodies: bool, parallel: bool):  # type: ignore[no-untyped-def]
+def _loop(with_bodies: bool):  # type: ignore[no-untyped-def]
     """The loop of :func:`march` (see the module docstring), compiled inline into each of the
     entry points; ``with_bodies`` False leaves the contact and the bodies' step out (numba drops
     the branches on a constant), which saves a third of compiling the loop of rods
-    (validation/benchmarks/results/cold_start.md). ``parallel``: the loop calls the rod forces
-    and the update compiled with parallel loops (:func:`rod_forces_parallel`,
-    :func:`update_parallel`); the loop itself is compiled without, which halves compiling it
-    (numba's parallel passes run on those two kernels only)."""
-    _forces_at = _forces_with(rod_forces_parallel if parallel else rod_forces)
-    _advance = update_parallel if parallel else update
+    (validation/benchmarks/results/cold_start.md)."""
 
     @numba.njit(inline="always")
     def march_loop(x, quat, v, W, bodies, t0, t_end, n0, h0, p, control,
@@ -398,7 +373,7 @@ def _loop(with_bodies: bool, parallel: bool):  # type: ignore[no-untyped-def]
                 t = t_seg + k * h_seg
             elif not t < t_end:
                 break
-            step_peak, phi = _forces_at(t, x, quat, v, W, p, s)
+            step_peak, phi = _forces(t, x, quat, v, W, p, s)
             evaluations += 1
             if fixed:
                 h_full, h, last = h_seg, h_seg, False
@@ -435,7 +410,7 @@ def _loop(with_bodies: bool, parallel: bool):  # type: ignore[no-untyped-def]
             h_min = min(h_min, h_full)
             h_max = max(h_max, h_full)
             work += h * power
-            finite = _advance(x, quat, v, W, s.f_node, s.m_node, p.nodes, p.rotations, h)
+            finite = _update(x, quat, v, W, s.f_node, s.m_node, p.nodes, p.rotations, h)
             if with_bodies and has_bodies:
                 node_speed = largest_speed(v)
                 advance_bodies(h, cs.body_force, cs.body_moment, bm.inv_mass, bm.inertia,
@@ -461,8 +436,7 @@ def _loop(with_bodies: bool, parallel: bool):  # type: ignore[no-untyped-def]
     return march_loop
 
 
-_march, _march_free = _loop(True, False), _loop(False, False)
-_march_parallel, _march_parallel_free = _loop(True, True), _loop(False, True)
+_march, _march_free = _loop(True), _loop(False)
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -475,11 +449,11 @@ def march(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control,
     return _march(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control, scratch)
 
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True, parallel=True, error_model="numpy")
 def march_parallel(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control,
                    scratch):  # pragma: no cover - compiled
     """:func:`march` with the loops over rod elements and nodes on numba's threads."""
-    return _march_parallel(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control, scratch)
+    return _march(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control, scratch)
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -489,11 +463,11 @@ def march_free(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control,
     return _march_free(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control, scratch)
 
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True, parallel=True, error_model="numpy")
 def march_parallel_free(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control,
                         scratch):  # pragma: no cover - compiled
     """:func:`march_parallel` for a problem without rigid bodies (compiled without contact)."""
-    return _march_parallel_free(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control, scratch)
+    return _march_free(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control, scratch)
 
 
 def march_for(problem: ExplicitProblem, parallel: bool):  # type: ignore[no-untyped-def]
