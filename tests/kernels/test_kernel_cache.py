@@ -147,7 +147,7 @@ def _compiled_functions() -> dict[str, tuple[str, bool, set[str]]]:
     found: dict[str, tuple[str, bool, set[str]]] = {}
     for path in sorted(cache.PACKAGE.rglob("*.py")):
         tree = ast.parse(path.read_text())
-        for node in tree.body:
+        for node in ast.walk(tree):   # nested ones too: a loop built in a closure (explicit._loop)
             if not isinstance(node, ast.FunctionDef):
                 continue
             for dec in node.decorator_list:
