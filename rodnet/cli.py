@@ -165,7 +165,11 @@ def main(argv: list[str] | None = None) -> int:
 
         print("rodnet compile: compiling the kernels of the demo and of small rod runs",
               file=sys.stderr)
-        seconds = precompile(args.processes, say=lambda line: print(line, file=sys.stderr))
+        seconds, ok = precompile(args.processes, say=lambda line: print(line, file=sys.stderr))
+        if not ok:
+            print(f"rodnet compile: a run above did not end ok ({seconds:.1f} s); its kernels "
+                  "compile on their first call in a run", file=sys.stderr)
+            return EXIT_FAILED
         print(f"rodnet compile: done in {seconds:.1f} s", file=sys.stderr)
         return 0
     from rodnet.errors import SceneError

@@ -78,20 +78,29 @@ def runs() -> tuple[Warm, ...]:
 
 
 def _warm(run: Warm, folder: str) -> tuple[str, float, str]:
-    """Run ``run`` into ``folder``; returns its label, the CPU seconds it took and its status."""
+    """Run ``run`` into ``folder``; returns its label, the CPU seconds it took and its status
+    ("ok", or what went wrong: its kernels then compile on their first call in a run)."""
     from rodnet.data import reference_scene_text
     from rodnet.run import run as run_scene
     from rodnet.scene import scene_from_toml
 
     start = time.process_time()
     text = reference_scene_text() if run.text is None else run.text
-    scene = scene_from_toml(text, list(run.overrides), source=f"rodnet compile ({run.label})")
-    result = run_scene(scene, folder, progress=False, threads=run.threads)
-    return run.label, time.process_time() - start, str(result.summary.get("status"))
+    try:
+        scene = scene_from_toml(text, list(run.overrides), source=f"rodnet compile ({run.label})")
+        summary = run_scene(scene, folder, progress=False, threads=run.threads).summary
+        status = str(summary.get("status"))
+        if status != "ok":
+            status = f"{status}: {summary.get('message', '')}"
+    except Exception as exc:  # reported, not raised: the other runs' kernels are still cached
+        status = f"failed: {type(exc).__name__}: {exc}"
+    return run.label, time.process_time() - start, status
 
 
-def precompile(processes: int | None = None, say=print) -> float:  # type: ignore[no-untyped-def]
-    """Compile the kernels of :func:`runs` into numba's cache; returns the wall seconds taken.
+def precompile(processes: int | None = None,
+               say=print) -> tuple[float, bool]:  # type: ignore[no-untyped-def]
+    """Compile the kernels of :func:`runs` into numba's cache; returns the wall seconds taken
+    and whether every run ended "ok".
 
     Parameters
     ----------
@@ -108,6 +117,8 @@ def precompile(processes: int | None = None, say=print) -> float:  # type: ignor
     with tempfile.TemporaryDirectory(prefix="rodnet-compile-") as work:
         folders = [os.path.join(work, str(k)) for k in range(len(todo))]
         with ProcessPoolExecutor(workers, mp_context=get_context("spawn")) as pool:
+            statuses = []
             for label, cpu, status in pool.map(_warm, todo, folders):
                 say(f"  {label}: {cpu:.1f} CPU s ({status})")
-    return time.time() - start
+                statuses.append(status)
+    return time.time() - start, all(status == "ok" for status in statuses)

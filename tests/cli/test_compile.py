@@ -57,3 +57,15 @@ def test_after_compile_the_demo_compiles_nothing(tmp_path: Path) -> None:
     assert probe.returncode == 0, probe.stderr
     assert "march_parallel_free" in json.loads(probe.stdout.splitlines()[-1]) or \
         "march_free" in json.loads(probe.stdout.splitlines()[-1])
+
+
+def test_a_run_that_fails_is_reported_not_raised(monkeypatch: pytest.MonkeyPatch) -> None:
+    from rodnet.tools import precompile as module
+
+    bad = module.Warm("a scene with a typo", (), "[simulation\n")
+    monkeypatch.setattr(module, "runs", lambda: (bad,))
+    lines: list[str] = []
+    seconds, ok = module.precompile(1, say=lines.append)
+    assert not ok and seconds > 0.0
+    assert len(lines) == 1 and lines[0].startswith("  a scene with a typo:")
+    assert "failed: SceneError" in lines[0]
