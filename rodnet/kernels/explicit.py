@@ -215,7 +215,6 @@ def _forces(t, x, quat, v, W, p, s):  # pragma: no cover - compiled
     return peak, phi
 
 
-
 @numba.njit(inline="always")
 def _turned(aw, ax, ay, az, bw, bx, by, bz):  # pragma: no cover - compiled
     """``q o exp(h W)`` normalised, from ``q`` and ``exp(h W) = (bw, bx, by, bz)``
