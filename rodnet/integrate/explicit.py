@@ -95,6 +95,7 @@ def integrate_explicit(system: System, state: State, times: NDArray[np.float64],
     bodies = _bodies(state)
     x, quat, v, W = state.q.x, state.q.quat, state.velocities, state.spin
     loop = march_for(problem, threads.current() > 1)
+    control = control._replace(blocks=threads.current())   # a block of elements per thread
     rods = problem.rods.rest_length.shape[0] > 0
     nodes_only = node_forces_only(problem, control)   # the fused loop of nodes-only problems
     stats = StepStats() if stats is None else stats  # filled in place: kept if the run fails

@@ -42,18 +42,21 @@ SERIES_ARGUMENTS = (_SERIES, *_SWITCH_ANGLES)
 series of the coefficients (C11) and the angles below which they are used."""
 
 BLOCKS = 64
-"""Blocks of consecutive elements (or nodes) in the parallel kernels' loops
-(:func:`rod_forces`, :func:`_state_and_force`, :func:`rodnet.kernels.explicit._update`): each
-loop runs over the blocks and calls a serial kernel on each (:func:`rod_forces_range`,
-:func:`state_and_force_range`, :func:`rodnet.kernels.explicit.update_range`), so numba's parallel
-passes see a loop of one call and the element's arithmetic is compiled once, not once more inside
-every parallel entry point (that was most of compiling a run:
-validation/benchmarks/results/cold_start.md). The loops are ``inline="always"``: their
-``prange`` is a parallel loop in a ``parallel=True`` entry point and a plain loop elsewhere
-(numba's cache breaks on compiled functions that call ``parallel=True`` ones:
-docs/architecture.md). numba shares the blocks out to its threads, evenly for 2, 4, 8, ...
-threads. A number, not the pool's size read in the kernel (``numba.get_num_threads`` stops numba
-from caching the kernel)."""
+"""Blocks of consecutive elements in the implicit path's parallel element loop
+(:func:`_state_and_force`).
+
+The parallel loops over elements and nodes run over blocks and call a serial kernel on each
+(:func:`state_and_force_range`, and in the explicit loop :func:`rod_forces_range` and
+:func:`rodnet.kernels.explicit.update_range`), so numba's parallel passes see a loop of one
+call and the element's arithmetic is compiled once, not once more inside every parallel entry
+point (that was most of compiling a run: validation/benchmarks/results/cold_start.md). The
+loops are ``inline="always"``: their ``prange`` is a parallel loop in a ``parallel=True``
+entry point and a plain loop elsewhere (numba's cache breaks on compiled functions that call
+``parallel=True`` ones: docs/architecture.md). numba shares the blocks out to its threads,
+evenly for 2, 4, 8, ... threads. A number, not the pool's size read in the kernel
+(``numba.get_num_threads`` stops numba from caching the kernel); the explicit loop takes its
+run's thread count instead (``StepControl.blocks``), since a block costs about half a
+microsecond there."""
 
 
 def _as_float(a: ArrayLike) -> FloatArray:
@@ -893,18 +896,24 @@ def _largest(monitor):  # pragma: no cover - compiled
 
 
 @numba.njit(inline="always")
-def rod_forces(x, quat, v, W, rods, force, monitor):  # pragma: no cover - compiled
-    """Every element's force (:func:`rod_forces_range`, in :data:`BLOCKS` blocks over numba's
-    threads in a ``parallel=True`` caller) into ``force`` (E, 12); returns the largest axial
-    force [N] and element rotation ``|psi|`` [rad]. ``monitor`` (E, 2) is scratch."""
+def rod_forces(x, quat, v, W, rods, force, monitor, blocks):  # pragma: no cover - compiled
+    """Every element's force (:func:`rod_forces_range`, in ``blocks`` blocks of consecutive
+    elements, over numba's threads in a ``parallel=True`` caller: see :data:`BLOCKS`) into
+    ``force`` (E, 12); returns the largest axial force [N] and element rotation ``|psi|``
+    [rad]. ``monitor`` (E, 2) is scratch."""
     pos, rot, oq, oR = rods.pos_nodes, rods.rot_nodes, rods.offset_q, rods.offset_R
     series, stiffness, tau = rods.series, rods.stiffness, rods.tau
     rest_length, reference_strain = rods.rest_length, rods.reference_strain
     tension_only, kink = rods.tension_only, rods.kink
     beta_angle, gamma_angle = rods.beta_angle, rods.gamma_angle  # no named tuple in a parallel loop
     n = rest_length.shape[0]
-    for b in numba.prange(BLOCKS):
-        rod_forces_range(b * n // BLOCKS, (b + 1) * n // BLOCKS, x, quat, v, W, pos, rot, oq, oR,
+    if blocks == 1:  # one call: a loop of one block around it made a serial step 1.25 times as long
+        rod_forces_range(0, n, x, quat, v, W, pos, rot, oq, oR, series, stiffness, tau,
+                         rest_length, reference_strain, tension_only, kink, beta_angle,
+                         gamma_angle, force, monitor)
+        return _largest(monitor)
+    for b in numba.prange(blocks):
+        rod_forces_range(b * n // blocks, (b + 1) * n // blocks, x, quat, v, W, pos, rot, oq, oR,
                          series, stiffness, tau, rest_length, reference_strain, tension_only,
                          kink, beta_angle, gamma_angle, force, monitor)
     return _largest(monitor)

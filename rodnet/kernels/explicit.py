@@ -43,7 +43,7 @@ import numpy as np
 from rodnet.kernels.contact_compiled import (ContactData, ContactScratch, accumulate_contact,
                                              body_speed, forget_clearance, largest_speed,
                                              select_bodies)
-from rodnet.kernels.cosserat_compiled import BLOCKS, RodElements, rod_forces, scatter_forces
+from rodnet.kernels.cosserat_compiled import RodElements, rod_forces, scatter_forces
 from rodnet.kernels.hinge import Hinges
 from rodnet.kernels.rigid_body import advance_bodies
 from rodnet.kernels.schedule import LoadSchedule, load_factor
@@ -109,7 +109,10 @@ class StepControl(NamedTuple):
     reach (E5) [s]; ``min_dt``: the shortest travel-limited base step accepted [s];
     ``rotation_controlled``: steps shrink with the element rotation (C50), by ``factor``
     interpolated at ``angles`` [rad] (else fixed steps, ``angles = [0]``, ``factor = [1]``);
-    ``stable_step``: the stability limit of the threads [s] (for messages).
+    ``stable_step``: the stability limit of the threads [s] (for messages); ``blocks``: how
+    many blocks of consecutive elements and nodes the loops over them take, one per thread of
+    the parallel loops (:func:`march_parallel`), 1 on one thread (a block costs about half a
+    microsecond more in the nodes' update).
     """
 
     dt: float
@@ -119,6 +122,7 @@ class StepControl(NamedTuple):
     angles: np.ndarray
     factor: np.ndarray
     stable_step: float
+    blocks: int = 1
 
 
 class Scratch(NamedTuple):
@@ -190,9 +194,10 @@ def _apply_loads(t, quat, loads, f_node, m_node):  # pragma: no cover - compiled
 
 
 @numba.njit(inline="always")
-def _forces(t, x, quat, v, W, p, s):  # pragma: no cover - compiled
+def _forces(t, x, quat, v, W, p, s, blocks):  # pragma: no cover - compiled
     """Every force and moment on the nodes at time ``t`` into ``s.f_node``, ``s.m_node``,
-    contact aside; returns the largest axial force [N] and element rotation [rad]."""
+    contact aside (the rod elements in ``blocks`` blocks); returns the largest axial force [N]
+    and element rotation [rad]."""
     f_node, m_node = s.f_node, s.m_node
     for i in range(f_node.shape[0]):
         for k in range(3):
@@ -209,7 +214,7 @@ def _forces(t, x, quat, v, W, p, s):  # pragma: no cover - compiled
         hinge_forces(x, v, f_node, h.nodes, h.stiffness, h.tau, h.rest)
     rods = p.rods
     if rods.rest_length.shape[0] > 0:
-        rod_peak, phi = rod_forces(x, quat, v, W, rods, s.force, s.monitor)
+        rod_peak, phi = rod_forces(x, quat, v, W, rods, s.force, s.monitor, blocks)
         peak = max(peak, rod_peak)
         scatter_forces(s.force, rods.pos_nodes, rods.rot_nodes, rods.offset_R, f_node, m_node)
     return peak, phi
@@ -296,19 +301,24 @@ def update_range(nodes_from, nodes_to, rot_from, rot_to, x, quat, v, W, f_node, 
 
 
 @numba.njit(inline="always")
-def _update(x, quat, v, W, f_node, m_node, nodes, rotations, h):  # pragma: no cover - compiled
+def _update(x, quat, v, W, f_node, m_node, nodes, rotations, h,
+            blocks):  # pragma: no cover - compiled
     """One symplectic Euler update (S9), (C46), (C47) in place (:func:`update_range` in
-    :data:`BLOCKS` blocks of nodes over numba's threads in a ``parallel=True`` caller); False
+    ``blocks`` blocks of nodes, over numba's threads in a ``parallel=True`` caller); False
     when the state became non-finite."""
     n, r = x.shape[0], W.shape[0]
     inv_mass, inertia, inv_inertia = nodes.inv_mass, rotations.inertia, rotations.inv_inertia
-    bad, far = 0, 0
-    for b in numba.prange(BLOCKS):  # no named tuple in a parallel loop
-        bad_b, far_b = update_range(b * n // BLOCKS, (b + 1) * n // BLOCKS, b * r // BLOCKS,
-                                    (b + 1) * r // BLOCKS, x, quat, v, W, f_node, m_node,
-                                    inv_mass, inertia, inv_inertia, h)
-        bad += bad_b
-        far += far_b
+    if blocks == 1:  # one call (as rod_forces)
+        bad, far = update_range(0, n, 0, r, x, quat, v, W, f_node, m_node, inv_mass, inertia,
+                                inv_inertia, h)
+    else:
+        bad, far = 0, 0
+        for b in numba.prange(blocks):  # no named tuple in a parallel loop
+            bad_b, far_b = update_range(b * n // blocks, (b + 1) * n // blocks, b * r // blocks,
+                                        (b + 1) * r // blocks, x, quat, v, W, f_node, m_node,
+                                        inv_mass, inertia, inv_inertia, h)
+            bad += bad_b
+            far += far_b
     if far:
         bad += _turn_far(quat, W, h)
     return bad == 0
@@ -372,7 +382,7 @@ def _loop(with_bodies: bool):  # type: ignore[no-untyped-def]
                 t = t_seg + k * h_seg
             elif not t < t_end:
                 break
-            step_peak, phi = _forces(t, x, quat, v, W, p, s)
+            step_peak, phi = _forces(t, x, quat, v, W, p, s, control.blocks)
             evaluations += 1
             if fixed:
                 h_full, h, last = h_seg, h_seg, False
@@ -409,7 +419,8 @@ def _loop(with_bodies: bool):  # type: ignore[no-untyped-def]
             h_min = min(h_min, h_full)
             h_max = max(h_max, h_full)
             work += h * power
-            finite = _update(x, quat, v, W, s.f_node, s.m_node, p.nodes, p.rotations, h)
+            finite = _update(x, quat, v, W, s.f_node, s.m_node, p.nodes, p.rotations, h,
+                             control.blocks)
             if with_bodies and has_bodies:
                 node_speed = largest_speed(v)
                 advance_bodies(h, cs.body_force, cs.body_moment, bm.inv_mass, bm.inertia,
@@ -524,4 +535,4 @@ def forces(t, x, quat, v, W, problem, scratch):  # pragma: no cover - compiled
     """The force (N, 3) [N] and body-frame moment (R, 3) [N m] on every node at time ``t``,
     contact aside, into ``scratch.f_node`` and ``scratch.m_node``; returns the largest axial
     force [N] and element rotation [rad]."""
-    return _forces(t, x, quat, v, W, problem, scratch)
+    return _forces(t, x, quat, v, W, problem, scratch, 1)

@@ -58,13 +58,15 @@ def test_a_non_finite_spin_fails_the_step() -> None:
     assert done.status == 1
 
 
-def test_the_parallel_loops_step_as_the_serial_ones() -> None:
-    """The parallel kernels split the elements and nodes into blocks (BLOCKS, which the 5 x 5
-    net's element and node counts do not divide): every element and node is still stepped once,
-    with the same arithmetic, so the loops give the same state to the last bit, turns past the
-    series of exp included."""
+def test_the_loops_step_the_same_in_any_number_of_blocks() -> None:
+    """The loops over elements and nodes run over blocks of them (``StepControl.blocks``, one
+    per thread in a run): whatever their number (7 divides neither the 5 x 5 net's elements nor
+    its nodes) and on one thread or two, every element and node is stepped once with the same
+    arithmetic, so the state is the same to the last bit, turns past the series of exp
+    included."""
     problem, control, st = _pinned_rod_net()
-    assert problem.rods.rest_length.shape[0] % kx.BLOCKS != 0
+    sizes = (problem.rods.rest_length.shape[0], st.q.x.shape[0], st.q.quat.shape[0])
+    assert all(size % 7 != 0 for size in sizes)
     rng = np.random.default_rng(5)
     quat0 = so3.quat_multiply(st.q.quat, so3.quat_from_rotvec(rng.normal(size=(len(st.q.quat), 3))
                                                             * 0.3))
@@ -75,10 +77,11 @@ def test_the_parallel_loops_step_as_the_serial_ones() -> None:
     try:
         ends = []
         # march_parallel is the same loop with contact: not compiled here (about 15 s)
-        for loop in (kx.march, kx.march_free, kx.march_parallel_free):
+        for loop, blocks in ((kx.march, 1), (kx.march, 7), (kx.march_free, 7),
+                             (kx.march_parallel_free, 2), (kx.march_parallel_free, 7)):
             x, quat, v, W = st.q.x.copy(), quat0.copy(), v0.copy(), W0.copy()
             done = loop(x, quat, v, W, _bodies(st), 0.0, 50 * control.dt, 1, control.dt, problem,
-                        control, scratch(problem))
+                        control._replace(blocks=blocks), scratch(problem))
             assert done.status == 0 and done.steps >= 50
             ends.append((done.steps, x, quat, v, W))
     finally:

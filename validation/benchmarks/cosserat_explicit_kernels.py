@@ -46,11 +46,15 @@ if quat.shape[0]:
 x[...] += rng.normal(size=x.shape) * 0.005
 v[...] = rng.normal(size=v.shape)
 OLD = hasattr(s, 'xe')
+import inspect
+BLOCKS = "blocks" in inspect.signature(kx._update.py_func).parameters  # one block per thread
 @numba.njit
 def loop_rods(K, x, quat, v, W, rods, s):
     for _ in range(K):
         if OLD:
             rod_forces(x, quat, v, W, rods, s.xe, s.qe, s.ve, s.force, s.monitor)
+        elif BLOCKS:
+            rod_forces(x, quat, v, W, rods, s.force, s.monitor, 1)
         else:
             rod_forces(x, quat, v, W, rods, s.force, s.monitor)
         scatter_forces(s.force, rods.pos_nodes, rods.rot_nodes, rods.offset_R, s.f_node, s.m_node)
@@ -58,12 +62,18 @@ def loop_rods(K, x, quat, v, W, rods, s):
 @numba.njit
 def loop_forces(K, x, quat, v, W, p, s):
     for _ in range(K):
-        kx._forces(0.0, x, quat, v, W, p, s)
+        if BLOCKS:
+            kx._forces(0.0, x, quat, v, W, p, s, 1)
+        else:
+            kx._forces(0.0, x, quat, v, W, p, s)
 
 @numba.njit
 def loop_update(K, x, quat, v, W, p, s):
     for _ in range(K):
-        kx._update(x, quat, v, W, s.f_node, s.m_node, p.nodes, p.rotations, 0.0)
+        if BLOCKS:
+            kx._update(x, quat, v, W, s.f_node, s.m_node, p.nodes, p.rotations, 0.0, 1)
+        else:
+            kx._update(x, quat, v, W, s.f_node, s.m_node, p.nodes, p.rotations, 0.0)
 
 def best(fn, *a, K=300, reps=9):
     fn(1, *a)
