@@ -311,7 +311,7 @@ def _static_increment(system: System, q_start: Configuration, load: float, optio
         return _within_xtol(du, is_rotation, options, system.length_scale)
 
     merit = None
-    if system.potential_exact and system.potential(q_start, STATIC_TIME, load) is not None:
+    if _has_potential(system, q_start, load):
         def merit(u: FloatArray) -> float:
             held = 0.0 if inertia is None else 0.5 * float(np.dot(inertia * u, u))
             return system.potential(moved(u), STATIC_TIME, load) + held  # type: ignore[operator]

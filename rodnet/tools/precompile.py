@@ -18,15 +18,16 @@ from concurrent.futures import ProcessPoolExecutor
 from multiprocessing import get_context
 from typing import NamedTuple
 
+from rodnet.demo import demo_scenes
+from rodnet.scene import Scene, scene_from_toml
+
 
 class Warm(NamedTuple):
-    """A short run whose kernels are compiled: ``label``, the built-in reference scene's
-    ``overrides`` or the TOML ``text`` of a scene, and ``threads`` (None: as a run chooses, every
-    core for the reference net)."""
+    """A short run whose kernels are compiled: ``label``, its ``scene`` and ``threads`` (None: as
+    a run chooses, every core for the reference net)."""
 
     label: str
-    overrides: tuple[str, ...] = ()
-    text: str | None = None
+    scene: Scene
     threads: int | None = None
 
 
@@ -63,32 +64,29 @@ frame_interval = 0.002
 
 
 def runs() -> tuple[Warm, ...]:
-    """The short runs whose kernels are compiled: the demo's two scenes and a small rod at the
-    default integrator and static."""
-    from rodnet.demo import ROD_SETTINGS
-
+    """The short runs whose kernels are compiled: the demo's two scenes (:func:`demo_scenes`,
+    the Cosserat one on every core and on one thread) and a small rod at the default integrator
+    and static."""
+    (_, rods, _), (_, lumped, _) = demo_scenes(list(SHORT), quick=False)
+    rod = {kind: scene_from_toml(ROD.format(type=kind), source=f"rodnet compile ({kind} rod)")
+           for kind in ("dynamic", "static")}
     return (
-        Warm("rodnet demo: Cosserat threads, explicit, every core", (*ROD_SETTINGS, *SHORT)),
-        Warm("rodnet demo: Cosserat threads, explicit, one thread", (*ROD_SETTINGS, *SHORT), None,
-             1),
-        Warm("rodnet demo: lumped reference", SHORT),
-        Warm("Cosserat rod, dynamic, default integrator", (), ROD.format(type="dynamic")),
-        Warm("Cosserat rod, static", (), ROD.format(type="static")),
+        Warm("rodnet demo: Cosserat threads, explicit, every core", rods),
+        Warm("rodnet demo: Cosserat threads, explicit, one thread", rods, 1),
+        Warm("rodnet demo: lumped reference", lumped),
+        Warm("Cosserat rod, dynamic, default integrator", rod["dynamic"]),
+        Warm("Cosserat rod, static", rod["static"]),
     )
 
 
 def _warm(run: Warm, folder: str) -> tuple[str, float, str]:
     """Run ``run`` into ``folder``; returns its label, the CPU seconds it took and its status
     ("ok", or what went wrong: its kernels then compile on their first call in a run)."""
-    from rodnet.data import reference_scene_text
     from rodnet.run import run as run_scene
-    from rodnet.scene import scene_from_toml
 
     start = time.process_time()
-    text = reference_scene_text() if run.text is None else run.text
     try:
-        scene = scene_from_toml(text, list(run.overrides), source=f"rodnet compile ({run.label})")
-        summary = run_scene(scene, folder, progress=False, threads=run.threads).summary
+        summary = run_scene(run.scene, folder, progress=False, threads=run.threads).summary
         status = str(summary.get("status"))
         if status != "ok":
             status = f"{status}: {summary.get('message', '')}"

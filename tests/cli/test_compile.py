@@ -60,12 +60,16 @@ def test_after_compile_the_demo_compiles_nothing(tmp_path: Path) -> None:
 
 
 def test_a_run_that_fails_is_reported_not_raised(monkeypatch: pytest.MonkeyPatch) -> None:
+    from rodnet.scene import scene_from_toml
     from rodnet.tools import precompile as module
 
-    bad = module.Warm("a scene with a typo", (), "[simulation\n")
+    # a scene that reads but is refused when run: a fixed explicit step far above its limit
+    refused = scene_from_toml(module.ROD.format(type="dynamic"), [
+        "simulation.integrator=explicit", "simulation.adaptive=false", "simulation.dt=1.0"])
+    bad = module.Warm("a step too long", refused)
     monkeypatch.setattr(module, "runs", lambda: (bad,))
     lines: list[str] = []
     seconds, ok = module.precompile(1, say=lines.append)
     assert not ok and seconds > 0.0
-    assert len(lines) == 1 and lines[0].startswith("  a scene with a typo:")
+    assert len(lines) == 1 and lines[0].startswith("  a step too long:")
     assert "failed: SceneError" in lines[0]
