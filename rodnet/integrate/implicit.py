@@ -64,7 +64,8 @@ class MotionState:
     v_previous, strain_previous :
         Velocity and strains at the start of that step.
     first_order : bool
-        That step was a backward-Euler start of a second-order scheme.
+        That step was a second-order scheme's backward-Euler step: its start, or a step taken
+        again by the energy guard.
     """
 
     q: Configuration
@@ -475,8 +476,10 @@ class BDF2(Scheme):
 
     def step(self, state: MotionState, t: float, h: float) -> tuple[MotionState, NewtonResult]:
         if state.increment is None:
-            return BackwardEuler(self.system, self.options, self.solver,
-                                 self.history).step(state, t, h)
+            start, result = BackwardEuler(self.system, self.options, self.solver,
+                                          self.history).step(state, t, h)
+            start.first_order = True
+            return start, result
         return self._guarded(state, t, h, *super().step(state, t, h))
 
     @staticmethod
@@ -484,6 +487,22 @@ class BDF2(Scheme):
         """``omega, alpha, c`` of a step ``h`` after a step ``h_previous``."""
         omega = h / h_previous
         return omega, (1.0 + 2.0 * omega) / (1.0 + omega), omega * omega / (1.0 + omega)
+
+    def _predictor(self, state: MotionState, h: float) -> list[FloatArray]:
+        """Accelerations ``g`` to start Newton from (``v1 = v + h g``): the velocity extrapolated
+        along the parabola through the last step's start and end velocities with the slope
+        ``vd`` at its end (the step's own interpolant: BDF2's ``vd`` is the derivative of the
+        parabola through the last three velocities), then the last acceleration, then none.
+        Against the linear extrapolation of the accelerations (:meth:`Scheme._guesses`) it
+        saved 8 to 15 % of the Newton iterations of the clamped thread and of the reference
+        deployment's first second (docs/rod_model.md, Predictor). After a backward-Euler step,
+        whose ``vd`` is the step's mean acceleration, the guesses of :meth:`Scheme._guesses`."""
+        if state.first_order:
+            return self._guesses(state)
+        assert state.v_previous is not None
+        hp = state.step
+        curvature = (state.v_previous - state.v + hp * state.vd) / (hp * hp)
+        return [state.vd + h * curvature, state.vd, np.zeros_like(state.vd)]
 
     def problem(self, state: MotionState, t: float, h: float) -> StepProblem:
         s, free = self.system, self.system.free
@@ -509,7 +528,7 @@ class BDF2(Scheme):
             StepRate(((1.0 + omega) * current - c * previous) / alpha, alpha / h)
         return self._equation(state, unpack, (alpha / h) * M, v_ref[free], h / alpha, 1.0,
                               step_end(t, h), rate,
-                              [(state.v + h * g)[free] for g in self._guesses(state)],
+                              [(state.v + h * g)[free] for g in self._predictor(state, h)],
                               s.potential_exact)
 
     def local_error(self, old: MotionState, new: MotionState, h: float) -> float:

@@ -65,3 +65,25 @@ def test_a_run_stops_between_failed_solves_when_asked(tmp_path: Path,
     assert r.summary["status"] == "interrupted", r.summary.get("message")
     assert r.summary["rejected_steps"] == 1        # stopped at the first failed solve
     assert (tmp_path / "result.npz").is_file()
+
+
+def test_bdf2_first_start_extrapolates_a_quadratic_velocity_exactly() -> None:
+    """BDF2's ``vd`` is the derivative of the parabola through its last three velocities, so
+    for a velocity quadratic in time (constant jerk) the first start lands on the next velocity
+    whatever the ratio of the steps; a wrong curvature or step ratio in the extrapolation
+    would miss it by ``O(h^2)``."""
+    from rodnet.integrate.implicit import BDF2, MotionState
+    from rodnet.state import Configuration
+
+    a, b, c = np.array([0.3, -1.0]), np.array([2.0, 0.5]), np.array([-4.0, 7.0])
+    v = lambda t: a + b * t + c * t * t          # noqa: E731
+    vd = lambda t: b + 2.0 * c * t               # noqa: E731
+    t, hp, h = 0.7, 0.004, 0.0065
+    q = Configuration(np.zeros((1, 3)), np.zeros((0, 4)))
+    state = MotionState(q, v(t), vd(t), vd(t), vd(t - hp), increment=np.zeros(2), step=hp,
+                        v_previous=v(t - hp))
+    first = BDF2._predictor(BDF2.__new__(BDF2), state, h)[0]
+    np.testing.assert_allclose(v(t) + h * first, v(t + h), rtol=0, atol=1e-13)
+    # the acceleration extrapolated linearly (the other schemes' first start) misses it
+    linear = v(t) + h * (2.0 * vd(t) - vd(t - hp))
+    assert np.abs(linear - v(t + h)).max() > 1e-6
