@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 from typing import Any, Callable
 
 import numpy as np
@@ -353,7 +354,6 @@ def newton(problem: NewtonProblem, u0: FloatArray, scale: float, solver: LinearS
                         f"residual {origin.norm:.3g} N (tolerance {tol:.3g} N)",
                         here.du is None)
         size = _length(w * (nxt.u - here.u))
-        lowered = nxt.phi < here.phi - 1e-6 * abs(here.phi)
         previous, here = here, nxt
         length = _length(here.r)
         memory["residual"] = min(memory["residual"], length)
@@ -382,7 +382,7 @@ def newton(problem: NewtonProblem, u0: FloatArray, scale: float, solver: LinearS
             here.du = None
         if p.on_accept is not None:
             p.on_accept(here.u)
-        if size < 0.5 * best or lowered:
+        if size < 0.5 * best or here.phi < previous.phi - 1e-6 * abs(previous.phi):
             best, since_best = min(best, size), 0
         else:
             since_best += 1
@@ -410,25 +410,34 @@ bringing it below the point before the free step."""
 
 @dataclass
 class _Point:
-    """An iterate: ``u``, its residual, merit and (once computed) Newton correction."""
+    """An iterate: ``u``, its residual, merit ``phi`` (computed by ``measure`` when first
+    asked: a full step that halves the residual is taken without it) and (once computed)
+    Newton correction."""
 
     u: FloatArray
     r: FloatArray
     norm: float
-    phi: float
+    measure: Callable[[], float] = field(repr=False)
     potential: bool
     du: FloatArray | None = field(default_factory=lambda: np.zeros(0))
     step: FloatArray = field(default_factory=lambda: np.zeros(0))
     slope: float = 0.0
+
+    @cached_property
+    def phi(self) -> float:
+        return self.measure()
 
 
 def _point(p: NewtonProblem, u: FloatArray, near: _Point | None) -> _Point:
     """The iterate at ``u`` with its residual and merit."""
     r, _ = p.evaluate(u, None)
     norm = _max_abs(r)
-    if p.merit is not None:
-        return _Point(u, r, norm, p.merit(u) if math.isfinite(norm) else math.inf, True)
-    return _Point(u, r, norm, 0.5 * _dot(r, r) if math.isfinite(norm) else math.inf, False)
+    merit = p.merit
+    if not math.isfinite(norm):
+        return _Point(u, r, norm, lambda: math.inf, merit is not None)
+    if merit is not None:
+        return _Point(u, r, norm, lambda: merit(u), True)
+    return _Point(u, r, norm, lambda: 0.5 * _dot(r, r), False)
 
 
 def _direction(p: NewtonProblem, solver: LinearSolver, at: _Point, matrix: str,
@@ -470,8 +479,8 @@ def _next(p: NewtonProblem, solver: LinearSolver, here: _Point, options: NewtonO
     shifted convexified step, in that order (see :func:`newton`). Returns the next iterate
     (None when none decreases the merit) and the watchdog's state ``watch, free, watched``."""
     trial = _point(p, here.u + here.step, here)
-    if watch is None and (_decreases(trial, here, 1.0, options, solver, w)
-                          or _halves_residual(trial, memory)):
+    if watch is None and (_halves_residual(trial, memory)
+                          or _decreases(trial, here, 1.0, options, solver, w)):
         return trial, None, True, watched
     cut = (_restrains(p, options) and here.du is not None
            and not np.array_equal(here.step, here.du))   # still cut after the restraint
