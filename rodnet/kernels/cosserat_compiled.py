@@ -26,7 +26,7 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
-from rodnet.kernels import cosserat_strain, so3
+from rodnet.kernels import cosserat_strain, so3, threads
 from rodnet.kernels.tension import REVERSED_STIFFNESS
 from rodnet.kernels.cosserat_strain import ROTATION_STOP
 from rodnet.kernels.so3 import FloatArray
@@ -57,6 +57,11 @@ evenly for 2, 4, 8, ... threads. A number, not the pool's size read in the kerne
 (``numba.get_num_threads`` stops numba from caching the kernel); the explicit loop takes its
 run's thread count instead (``StepControl.blocks``), since a block costs about half a
 microsecond there."""
+
+
+_NOT_STORED = (np.empty((0, 3)), np.empty((0, 3, 3)), np.empty((0, 3)), np.empty((0, 4)),
+               np.empty((0, 18)), np.empty((0, 9)), np.empty((0, 2)))
+"""The optional outputs of :func:`state_and_force_range`, none stored (no rows)."""
 
 
 def _as_float(a: ArrayLike) -> FloatArray:
@@ -91,8 +96,13 @@ def internal_force(
     """:func:`rodnet.kernels.cosserat.internal_force_numpy`, compiled: (n, 12). With ``step =
     (eps_ref (n, 6), inv_h)`` the strain rates are ``(eps - eps_ref) inv_h`` (C53)."""
     arrays = _element_arguments(rest_length, reference_strain, stiffness, tau, x, q, velocity)
-    return _internal_force_kernel(*arrays, bool(tension_only), float(kink_strain), _SERIES,
-                                  *_SWITCH_ANGLES, *_step_arguments(step, arrays[0].shape[0]))
+    scalars = (bool(tension_only), float(kink_strain), _SERIES, *_SWITCH_ANGLES,
+               *_step_arguments(step, arrays[0].shape[0]))
+    if threads.current() == 1:
+        force = np.empty((arrays[0].shape[0], 12))
+        state_and_force_range(0, len(force), *arrays, *scalars, force, *_NOT_STORED)
+        return force
+    return _internal_force_kernel(*arrays, *scalars)
 
 
 def _step_arguments(step: tuple[FloatArray, float] | None, n: int) -> tuple[FloatArray, float]:
@@ -127,11 +137,25 @@ def internal_force_and_tangents(
     # first-touch page faults would otherwise cost as much as the assembly at large n
     force = np.empty((n, 12))
     stiffness_out, damping_out = np.empty((n, 12, 12)), np.empty((n, 12, 12))
-    _internal_force_andtangents_kernel(*arrays, bool(tension_only), float(kink_strain), _SERIES,
-                                        *_SWITCH_ANGLES, *_step_arguments(step, n),
-                                        np.empty((0, 6)) if strain_shift is None else
-                                        _as_float(strain_shift), force, stiffness_out,
-                                        damping_out)
+    reference, inv_h = _step_arguments(step, n)
+    shift = np.empty((0, 6)) if strain_shift is None else _as_float(strain_shift)
+    if threads.current() > 1:
+        _internal_force_andtangents_kernel(*arrays, bool(tension_only), float(kink_strain),
+                                            _SERIES, *_SWITCH_ANGLES, reference, inv_h, shift,
+                                            force, stiffness_out, damping_out)
+        return force, stiffness_out, damping_out
+    # one thread: the same passes without a parallel region (its launch costs about as much
+    # as the force of a 20-element thread)
+    psi, R_m, g = np.empty((n, 3)), np.empty((n, 3, 3)), np.empty((n, 3))
+    coefficients, constitutive, velocity9 = np.empty((n, 4)), np.empty((n, 18)), np.empty((n, 9))
+    state_and_force_range(0, n, *arrays, bool(tension_only), float(kink_strain), _SERIES,
+                          *_SWITCH_ANGLES, reference, inv_h, force, psi, R_m, g, coefficients,
+                          constitutive, velocity9, np.empty((0, 2)))
+    rate_factor = inv_h if reference.shape[0] > 0 else 0.0
+    if shift.shape[0] > 0:  # as _internal_force_andtangents_kernel
+        constitutive[:, :6] += (constitutive[:, 6:12] + rate_factor * constitutive[:, 12:]) * shift
+    tangents_kernel(psi, R_m, g, coefficients, constitutive, velocity9, 1.0 / arrays[0],
+                    rate_factor, stiffness_out, damping_out)
     return force, stiffness_out, damping_out
 
 
