@@ -65,7 +65,8 @@ def once(source: Path | None, text: str, overrides: list[str], out: str) -> dict
     env = dict(os.environ, NUMBA_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
     if source is not None:
         env["PYTHONPATH"] = str(source)
-    done = subprocess.run([sys.executable, "-c", CHILD, text, json.dumps(overrides), out],
+    # -P: the working directory does not shadow the tree on PYTHONPATH
+    done = subprocess.run([sys.executable, "-P", "-c", CHILD, text, json.dumps(overrides), out],
                           env=env, capture_output=True, text=True)
     if done.returncode != 0:
         raise RuntimeError(done.stderr[-2000:])

@@ -151,8 +151,10 @@ report(status="ok" if np.isfinite(tip).all() else "diverged", steps=steps, run_w
 
 def child(code: str, args: list[str], pythonpath: Path) -> dict:
     env = {**os.environ, "PYTHONPATH": str(pythonpath)}
-    done = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True,
-                          env=env)
+    # -P: the working directory is not put before PYTHONPATH (run from a checkout, it would
+    # shadow the tree under test)
+    done = subprocess.run([sys.executable, "-P", "-c", code, *args], capture_output=True,
+                          text=True, env=env)
     if done.returncode != 0:
         return {"status": "error: " + done.stderr.strip().splitlines()[-1][:120]}
     return json.loads(done.stdout.strip().splitlines()[-1])

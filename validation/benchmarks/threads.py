@@ -42,7 +42,9 @@ def child(ns: int, args: list[str], env: dict[str, str], out: Path) -> dict[str,
     sets = [a for s in BASE + [f"net.nodes_per_side={ns}"] for a in ("--set", s)]
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
-    done = subprocess.run([sys.executable, "-m", "rodnet", "demo", "--quick", "-o", str(out), "--quiet",
+    # -P: the working directory does not shadow the tree on PYTHONPATH
+    done = subprocess.run([sys.executable, "-P", "-m", "rodnet", "demo", "--quick", "-o", str(out),
+                           "--quiet",
                            *sets, *args], env=env, capture_output=True, text=True)
     wall = time.perf_counter() - start
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
