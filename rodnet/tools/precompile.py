@@ -66,15 +66,21 @@ frame_interval = 0.002
 def runs() -> tuple[Warm, ...]:
     """The short runs whose kernels are compiled: the demo's two scenes (:func:`demo_scenes`,
     the Cosserat one on every core and on one thread) and a small rod at the default integrator
-    and static."""
+    (on one thread, and on every core: an implicit run on one thread calls the element loops
+    without a parallel region) and static."""
+    from rodnet.kernels import threads
+
     (_, rods, _), (_, lumped, _) = demo_scenes(list(SHORT), quick=False)
     rod = {kind: scene_from_toml(ROD.format(type=kind), source=f"rodnet compile ({kind} rod)")
            for kind in ("dynamic", "static")}
+    cores = threads.available()
     return (
         Warm("rodnet demo: Cosserat threads, explicit, every core", rods),
         Warm("rodnet demo: Cosserat threads, explicit, one thread", rods, 1),
         Warm("rodnet demo: lumped reference", lumped),
-        Warm("Cosserat rod, dynamic, default integrator", rod["dynamic"]),
+        Warm("Cosserat rod, dynamic, default integrator", rod["dynamic"], 1),
+        *([Warm("Cosserat rod, dynamic, default integrator, every core", rod["dynamic"], cores)]
+          if cores > 1 else []),
         Warm("Cosserat rod, static", rod["static"]),
     )
 
