@@ -244,8 +244,7 @@ class Scheme:
             return 0.5 * float(np.einsum("i,i,i", inertia, w, w)) + \
                 s.potential(q_e, t_eval, rate=rate) / d  # type: ignore[operator]
 
-        usable = merit_exact and rate is not None and \
-            s.potential(state.q, t_eval, rate=rate) is not None
+        usable = merit_exact and rate is not None   # potential_exact: the system has one
         return StepProblem(evaluate, lambda u: state_of(u)[0], state_of, starts, d, mixed,
                            merit if usable else None)
 
@@ -287,25 +286,31 @@ class Scheme:
                                 s.dof_mass[free], length, restraint)
         rot = s.rotation_dofs()
         # a start that turns a node by more than the rotation cap lies beyond where the
-        # exponential map is one-to-one near the solution: left out (the last start turns least)
-        # (last to first: the step's cached end state is then that of the first start)
-        turns = [float(np.abs(p.end_state(u0).increment[rot]).max(initial=0.0))  # type: ignore[index]
-                 for u0 in reversed(p.starts)][::-1]
-        starts = [u0 for u0, turn in zip(p.starts, turns)
-                  if turn <= self.options.max_rotation] or [p.starts[int(np.argmin(turns))]]
+        # exponential map is one-to-one near the solution: left out, unless every start does
+        # (then the one that turns least); the starts are looked at in turn, as far as needed
+        turns: list[float] = []
+        first: FloatArray | None = None   # the first start tried
+        result: NewtonResult | None = None
         discarded = [0, 0]   # iterations and factorisations of the starts that failed
-        for i, u0 in enumerate(starts):
-            if i:
+        for u0 in p.starts:
+            turns.append(float(np.abs(p.end_state(u0).increment[rot]).max(initial=0.0)))  # type: ignore[index]
+            if turns[-1] > self.options.max_rotation:
+                continue
+            if result is not None:
                 discarded = [discarded[0] + result.iterations,
                              discarded[1] + result.factorizations]
+            first = u0 if first is None else first
             result = newton(problem, u0, scale, self.solver, self.options, self.history)
             if result.converged:
                 break
+        if first is None or result is None:
+            first = p.starts[int(np.argmin(turns))]
+            result = newton(problem, first, scale, self.solver, self.options, self.history)
         result.discarded_iterations, result.discarded_factorizations = discarded
         if not result.converged and self.options.restrain:
             # the restrained corrections follow another path, which can end in a valley the
             # plain cut avoids (backward Euler at a fixed 2 ms on the pinned reference net)
-            plain = newton(problem, starts[0], scale, self.solver,
+            plain = newton(problem, first, scale, self.solver,
                            replace(self.options, restrain=False), self.history)
             plain.add_counts(result)
             result = plain

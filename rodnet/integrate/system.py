@@ -83,6 +83,8 @@ class System(Protocol):
         ...
 
     potential_exact: bool
+    """Whether ``g`` with a step rate is exactly the gradient of :meth:`potential` (so the
+    system has one)."""
 
     def mechanical_energy(self, q: Configuration, v: FloatArray, t: float) -> float | None:
         """Kinetic plus potential energy (internal, external at time ``t``, contact springs)
