@@ -244,6 +244,9 @@ class NewtonProblem:
         ``restraint(du) -> (n,) float or None``: for every DOF of a node that ``du`` turns by
         ``turn`` > ``max_rotation``, ``turn / max_rotation - 1``, zero elsewhere; None when no
         node turns that far (see :func:`_restrained`).
+    rebases : bool
+        ``on_accept`` moves the chart ``u`` is read in (a static solve's base): an iterate's
+        merit is then computed when the iterate is made, not when first asked.
     """
 
     evaluate: Evaluate
@@ -256,6 +259,7 @@ class NewtonProblem:
     metric: FloatArray | None = None
     length: float = 1.0
     restraint: Callable[[FloatArray], FloatArray | None] | None = None
+    rebases: bool = False
 
 
 def newton(problem: NewtonProblem, u0: FloatArray, scale: float, solver: LinearSolver,
@@ -435,9 +439,12 @@ def _point(p: NewtonProblem, u: FloatArray, near: _Point | None) -> _Point:
     merit = p.merit
     if not math.isfinite(norm):
         return _Point(u, r, norm, lambda: math.inf, merit is not None)
-    if merit is not None:
-        return _Point(u, r, norm, lambda: merit(u), True)
-    return _Point(u, r, norm, lambda: 0.5 * _dot(r, r), False)
+    if merit is None:
+        return _Point(u, r, norm, lambda: 0.5 * _dot(r, r), False)
+    point = _Point(u, r, norm, lambda: merit(u), True)
+    if p.rebases:
+        point.phi  # noqa: B018  (taken now, in the chart the iterate was made in)
+    return point
 
 
 def _direction(p: NewtonProblem, solver: LinearSolver, at: _Point, matrix: str,

@@ -317,7 +317,8 @@ def _static_increment(system: System, q_start: Configuration, load: float, optio
             return system.potential(moved(u), STATIC_TIME, load) + held  # type: ignore[operator]
 
     problem = NewtonProblem(evaluate, shorten, small, merit, weights, rebase,
-                            metric=system.dof_mass[free], length=system.length_scale)
+                            metric=system.dof_mass[free], length=system.length_scale,
+                            rebases=True)
     result = newton(problem, np.zeros(n_free), scale, solver, options, history)
     if result.singular:
         raise SimulationFailed(
