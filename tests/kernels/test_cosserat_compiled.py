@@ -242,3 +242,32 @@ def test_no_elements():
     f, K, C = cosserat.internal_force_and_tangents(*empty, TENSION_ONLY, KINK)
     assert f.shape == (0, 12) and K.shape == C.shape == (0, 12, 12)
     assert cosserat.strain_energy(*empty[:3], *empty[4:6], TENSION_ONLY, KINK).shape == (0,)
+
+
+def test_one_thread_and_parallel_kernels_agree_to_the_bit(case):
+    """On one thread the force and tangent kernels run the serial element passes without a
+    parallel region; with a step's strain rates and the mixed step's strain shift (the implicit
+    path's arguments) they must give the parallel kernels' arrays exactly."""
+    import numba
+
+    from rodnet.kernels import cosserat_compiled, threads
+
+    if threads.available() < 2:
+        pytest.skip("one core: no parallel kernels to compare with")
+    model, state, law = case
+    rng = np.random.default_rng(5)
+    n = len(model[0])
+    step = (rng.normal(scale=0.01, size=(n, 6)), 250.0)
+    shift = rng.normal(scale=1e-3, size=(n, 6))
+    before = numba.get_num_threads()
+    out = {}
+    try:
+        for count in (1, threads.available()):
+            numba.set_num_threads(count)
+            out[count] = (cosserat_compiled.internal_force(*model, *state, *law, step),
+                          *cosserat_compiled.internal_force_and_tangents(*model, *state, *law,
+                                                                          step, shift))
+    finally:
+        numba.set_num_threads(before)
+    for serial, parallel in zip(out[1], out[threads.available()]):
+        np.testing.assert_array_equal(serial, parallel)
