@@ -150,12 +150,9 @@ def internal_force_and_tangents(
     coefficients, constitutive, velocity9 = np.empty((n, 4)), np.empty((n, 18)), np.empty((n, 9))
     state_and_force_range(0, n, *arrays, bool(tension_only), float(kink_strain), _SERIES,
                           *_SWITCH_ANGLES, reference, inv_h, force, psi, R_m, g, coefficients,
-                          constitutive, velocity9, np.empty((0, 2)))
-    rate_factor = inv_h if reference.shape[0] > 0 else 0.0
-    if shift.shape[0] > 0:  # as _internal_force_andtangents_kernel
-        constitutive[:, :6] += (constitutive[:, 6:12] + rate_factor * constitutive[:, 12:]) * shift
-    tangents_kernel(psi, R_m, g, coefficients, constitutive, velocity9, 1.0 / arrays[0],
-                    rate_factor, stiffness_out, damping_out)
+                          constitutive, velocity9, _NOT_STORED[-1])
+    _shifted_tangents(psi, R_m, g, coefficients, constitutive, velocity9, arrays[0], reference,
+                      inv_h, shift, stiffness_out, damping_out)
     return force, stiffness_out, damping_out
 
 
@@ -668,14 +665,25 @@ def _internal_force_andtangents_kernel(rest_length, reference_strain, stiffness,
     _state_and_force(rest_length, reference_strain, stiffness, tau, x, q, velocity, tension_only,
                      kink, series, beta_angle, gamma_angle, step_reference, inv_h, force, psi,
                      R_m, g, coefficients, constitutive, velocity9, np.empty((0, 2)))
-    if strain_shift.shape[0] > 0:  # the geometric stress of the mixed Newton step (C55)
-        rate_factor = inv_h if step_reference.shape[0] > 0 else 0.0
-        for e in range(n):
+    _shifted_tangents(psi, R_m, g, coefficients, constitutive, velocity9, rest_length,
+                      step_reference, inv_h, strain_shift, stiffness_out, damping_out)
+
+
+@numba.njit(cache=True)
+def _shifted_tangents(psi, R_m, g, coefficients, constitutive, velocity9, rest_length,
+                      step_reference, inv_h, strain_shift, stiffness_out,
+                      damping_out):  # pragma: no cover - compiled
+    """:func:`tangents_kernel` from what :func:`state_and_force_range` stored, the stresses of
+    its geometric part at the strains shifted by ``strain_shift`` (n, 6) where that has rows
+    (the mixed Newton step, C55)."""
+    rate_factor = inv_h if step_reference.shape[0] > 0 else 0.0
+    if strain_shift.shape[0] > 0:
+        for e in range(rest_length.shape[0]):
             for k in range(6):
                 constitutive[e, k] += (constitutive[e, 6 + k] + rate_factor
                                        * constitutive[e, 12 + k]) * strain_shift[e, k]
     tangents_kernel(psi, R_m, g, coefficients, constitutive, velocity9, 1.0 / rest_length,
-                    inv_h if step_reference.shape[0] > 0 else 0.0, stiffness_out, damping_out)
+                    rate_factor, stiffness_out, damping_out)
 
 
 @numba.njit(cache=True)
