@@ -46,6 +46,43 @@ def small_net_toml(duration: float = 0.6, integrator: str = "explicit", n: int =
                             direction=direction, vtk=vtk)
 
 
+
+FALLING_THREAD = """
+[simulation]
+type = "dynamic"
+duration = {duration}
+gravity = [0.0, 0.0, -9.81]
+{simulation}
+[model]
+type = "cosserat"
+axial = "linear"
+[[materials]]
+name = "nylon"
+density = 1150.0
+youngs_modulus = 2.5e9
+poisson_ratio = 0.35
+diameter = 1.0e-3
+[[rods]]
+name = "thread"
+material = "nylon"
+points = [[0, 0, 0], [1.5, 0, 0]]
+elements = {elements}
+[[supports]]
+node = "thread:start"
+fix = "clamp"
+[output]
+frame_interval = {frame_interval}
+vtk = false
+"""
+
+
+def falling_thread_toml(duration: float = 1.0, elements: int = 20, frame_interval: float = 0.01,
+                        simulation: str = "") -> str:
+    """The benchmark thread: 1.5 m of 1 mm nylon (EA L^2 / EI = 3.6e7), clamped at one end and
+    released horizontal under gravity; ``simulation`` adds lines to ``[simulation]``."""
+    return FALLING_THREAD.format(duration=duration, elements=elements,
+                                 frame_interval=frame_interval, simulation=simulation)
+
 @pytest.fixture
 def small_net() -> str:
     return small_net_toml()

@@ -277,13 +277,17 @@ class Scheme:
             _, q_e, _, dq_e = p.unpacked(u)
             p.mixed.accept(dq_e, q_e)
 
+        def start(u: FloatArray) -> None:
+            _, q_e, _, dq_e = p.unpacked(u)
+            p.mixed.start(dq_e, q_e)
+
         def restraint(du: FloatArray) -> FloatArray | None:
             return rotation_overshoot(du, triples, self.options.max_rotation / d)
 
         weights = np.full(len(free_trans), d / length)
         weights[reduced_rot] = d
         problem = NewtonProblem(p.evaluate, shorten, small, p.merit, weights, accept, active_set,
-                                s.dof_mass[free], length, restraint)
+                                s.dof_mass[free], length, restraint, on_start=start)
         rot = s.rotation_dofs()
         # a start that turns a node by more than the rotation cap lies beyond where the
         # exponential map is one-to-one near the solution: left out, unless every start does

@@ -247,6 +247,9 @@ class NewtonProblem:
     rebases : bool
         ``on_accept`` moves the chart ``u`` is read in (a static solve's base): an iterate's
         merit is then computed when the iterate is made, not when first asked.
+    on_start : callable, optional
+        Told the start instead of ``on_accept`` (it was extrapolated, not reached by a
+        correction).
     """
 
     evaluate: Evaluate
@@ -260,6 +263,7 @@ class NewtonProblem:
     length: float = 1.0
     restraint: Callable[[FloatArray], FloatArray | None] | None = None
     rebases: bool = False
+    on_start: Callable[[FloatArray], None] | None = None
 
 
 def newton(problem: NewtonProblem, u0: FloatArray, scale: float, solver: LinearSolver,
@@ -323,8 +327,9 @@ def newton(problem: NewtonProblem, u0: FloatArray, scale: float, solver: LinearS
         history.append(here.norm)
     if here.norm <= tol:
         return done(here, True)
-    if p.on_accept is not None:   # the start is the first iterate: its matrix is exact
-        p.on_accept(here.u)
+    told = p.on_accept if p.on_start is None else p.on_start
+    if told is not None:   # the start is the first iterate
+        told(here.u)
     if not _direction(p, solver, here, "exact", options):
         if not here.potential:
             return done(here, False, "the iteration matrix cannot be factorised", True)

@@ -23,6 +23,7 @@ from rodnet.integrate.newton import NewtonOptions
 from rodnet.kernels import so3
 from rodnet.run import RunResult, prepare, run
 from rodnet.scene import load_scene, scene_from_toml
+from tests.conftest import falling_thread_toml
 from tests.systems import implicit_scheme
 
 CASES = Path(__file__).parents[2] / "validation" / "cases"
@@ -254,36 +255,7 @@ def test_time_order_with_finer_steps(tmp_path: Path) -> None:
 
 # --- 3b. error-controlled steps -----------------------------------------------------------------
 
-FALLING_THREAD = """
-[simulation]
-type = "dynamic"
-integrator = "generalized-alpha"
-duration = 1.0
-dt = {dt}
-adaptive = {adaptive}
-{tolerance}
-gravity = [0.0, 0.0, -9.81]
-[model]
-type = "cosserat"
-axial = "linear"
-[[materials]]
-name = "nylon"
-density = 1150.0
-youngs_modulus = 2.5e9
-poisson_ratio = 0.35
-diameter = 1.0e-3
-[[rods]]
-name = "thread"
-material = "nylon"
-points = [[0, 0, 0], [1.5, 0, 0]]
-elements = 20
-[[supports]]
-node = "thread:start"
-fix = "clamp"
-[output]
-frame_interval = 0.01
-vtk = false
-"""
+FIXED_GA = 'integrator = "generalized-alpha"\ndt = {dt}\nadaptive = {adaptive}'
 
 
 def test_error_controlled_steps_meet_the_tolerance(tmp_path: Path) -> None:
@@ -293,11 +265,12 @@ def test_error_controlled_steps_meet_the_tolerance(tmp_path: Path) -> None:
     steps; the tolerance bounds the root-mean-square of the nodes' local errors, the tip's own
     is larger), steps above the tolerance are rejected, and the steps stay within 0.2 ... 2
     times their predecessor, so the controller resizes rather than halves."""
-    reference = _run(FALLING_THREAD.format(dt=2e-4, adaptive="false", tolerance=""), tmp_path / "r")
+    reference = _run(falling_thread_toml(simulation=FIXED_GA.format(dt=2e-4, adaptive="false")),
+                     tmp_path / "r")
     tips, steps = [], []
     for tol in (1e-5, 1e-6):
-        result = _run(FALLING_THREAD.format(dt=1e-3, adaptive="true",
-                                            tolerance=f"error_tolerance = {tol}"), tmp_path / f"{tol}")
+        result = _run(falling_thread_toml(simulation=FIXED_GA.format(dt=1e-3, adaptive="true")
+                                          + f"\nerror_tolerance = {tol}"), tmp_path / f"{tol}")
         tip = result.arrays["positions"][:, -1] - reference.arrays["positions"][:, -1]
         tips.append(float(np.linalg.norm(tip, axis=1).max()))
         steps.append(result.summary["steps"])
