@@ -31,7 +31,8 @@ FloatArray = NDArray[np.float64]
 class NewtonOptions:
     """Tolerances and limits of :func:`newton`.
 
-    The residual is converged when ``|r|_inf <= atol + rtol * scale``, or when a full Newton
+    The residual is converged when ``|r|_inf <= atol + rtol * scale`` (``atol`` at most ``rtol *
+    scale``: :func:`tolerance`), or when a full Newton
     correction moves no node by more than ``xtol`` times the length scale and turns none by
     more than ``xtol`` rad. A solve fails when it makes no progress (in ``stall_iterations``
     iterations its correction not halved and its merit not lowered by 1e-6 of itself) or
@@ -266,6 +267,14 @@ class NewtonProblem:
     on_start: Callable[[FloatArray], None] | None = None
 
 
+def tolerance(options: NewtonOptions, scale: float) -> float:
+    """Newton's residual tolerance [N] for forces of size ``scale`` [N]: ``atol + rtol scale``
+    with the absolute part at most the relative one, so that loads far below ``atol`` (a
+    micrometre filament under piconewtons) are still solved to ``rtol`` of themselves."""
+    relative = options.rtol * scale
+    return min(options.atol, relative) + relative
+
+
 def newton(problem: NewtonProblem, u0: FloatArray, scale: float, solver: LinearSolver,
            options: NewtonOptions, history: list[float] | None = None) -> NewtonResult:
     """Solve ``r(u) = 0`` by Newton's method, globalised for minimisation.
@@ -303,7 +312,7 @@ def newton(problem: NewtonProblem, u0: FloatArray, scale: float, solver: LinearS
     matrix is factorised at accepted points only; a converged iterate is polished with the
     last factorisation.
 
-    The solve has converged when ``|r|_inf <= atol + rtol scale`` or a correction is
+    The solve has converged when ``|r|_inf <=`` :func:`tolerance` or a correction is
     ``small``. It fails on a non-finite residual, when no step decreases ``phi``, when for
     ``stall_iterations`` iterations neither ``phi`` fell nor the correction halved, when for
     ``progress_iterations`` (if set) the Euclidean residual did not halve (after at least
@@ -312,7 +321,7 @@ def newton(problem: NewtonProblem, u0: FloatArray, scale: float, solver: LinearS
     """
     p = problem
     start = solver.factorizations
-    tol = options.atol + options.rtol * scale
+    tol = tolerance(options, scale)
     w = np.ones_like(u0) if p.weights is None else p.weights
     here = _point(p, np.array(u0, dtype=float), None)
     count = {"iterations": 0}

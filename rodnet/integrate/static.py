@@ -16,7 +16,7 @@ from rodnet.integrate.frames import StepStats
 from rodnet.integrate.implicit import cap_rotations
 from rodnet.integrate.mixed import MixedStrains
 from rodnet.integrate.newton import (LinearSolver, NewtonOptions, NewtonProblem, NewtonResult,
-                                     newton)
+                                     newton, tolerance)
 from rodnet.integrate.system import FrameSink, System
 from rodnet.state import Configuration, State
 
@@ -159,7 +159,7 @@ def _relaxed(solve: _Solve, q: Configuration, load: float) -> tuple[Configuratio
     system, options = solve.system, solve.options
     free, zero = system.free, np.zeros(system.n_dof)
     mass = np.maximum(system.dof_mass[free], 1e-300)
-    tol = options.atol + options.rtol * solve.scale
+    tol = tolerance(options, solve.scale)
     is_rotation = _rotation_mask(system)
 
     def residual(at: Configuration) -> FloatArray:

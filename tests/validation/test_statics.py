@@ -317,6 +317,47 @@ def test_static_solution_does_not_depend_on_load_steps(tmp_path: Path) -> None:
     assert np.abs(ra - rb).max() <= 1e-8
 
 
+
+def test_a_filament_under_piconewtons_bends_like_the_elastica(tmp_path: Path) -> None:
+    """The elastica of ``P L^2 / EI = 2`` on a 1 mm filament (10 um, E = 10 kPa): its tip force
+    is 1e-11 N, below Newton's absolute tolerance of 1e-10 N. The tolerance is relative to the
+    loads, so the filament's tip lies where the steel rod's does (in units of its length)."""
+    diameter, youngs, length = 1e-5, 1e4, 1e-3
+    ei = youngs * np.pi * diameter**4 / 64.0
+    force = 2.0 * ei / length**2
+    text = f"""
+[simulation]
+type = "static"
+load_steps = 5
+[model]
+axial = "linear"
+[[materials]]
+name = "gel"
+density = 1000.0
+youngs_modulus = {youngs}
+poisson_ratio = 0.3
+diameter = {diameter}
+[[rods]]
+name = "beam"
+material = "gel"
+points = [[0.0, 0.0, 0.0], [{length}, 0.0, 0.0]]
+elements = 20
+[[supports]]
+node = "beam:start"
+fix = "clamp"
+[[loads]]
+node = "beam:end"
+force = [0.0, 0.0, {-force}]
+[output]
+vtk = false
+"""
+    assert force < 1e-10
+    r = run(scene_from_toml(text), tmp_path, progress=False)
+    assert r.status == "ok", r.message
+    # the steel rod of test_static_solution_does_not_depend_on_load_steps: 0.4935 L
+    assert -r.arrays["positions"][-1, -1, 2] / length == pytest.approx(0.4934574803967118,
+                                                                       rel=2e-3)
+
 # --- 5. and 6. the expected values of the validation cases ---------------------------------------
 
 def elastica_bvp(alpha: float) -> tuple[float, float]:
