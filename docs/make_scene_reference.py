@@ -30,8 +30,10 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
         "between two pins, a net hung from its knots, a rod whose supports leave it free to "
         "twist, a rod or chain on one pin that must turn to its load); an unstable equilibrium is "
         "left for a stable one where one is found, else reported in the summary's `warnings`; "
-        "a static scene with a part that has no supported node, and no fixed body to "
-        "rest on, is refused (no load holds it). See [the rod model](rod_model.md#static-runs)."),
+        "a static scene with a part that has no node with a supported position, or that no "
+        "support of the part holds along one of the axes x, y, z, and no fixed body to rest on, "
+        "is refused (no load holds it: it would drift along that axis). See "
+        "[the rod model](rod_model.md#static-runs)."),
     "simulation.duration": ("s", "Simulated time of a dynamic run; > 0. Not used by static runs."),
     "simulation.dt": (
         "s", "> 0. Explicit integrator with `adaptive = false`: the step, shrunk so that a whole "

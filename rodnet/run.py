@@ -38,7 +38,7 @@ from rodnet.integrate.implicit import NEWTON_TARGET, SCHEMES, integrate_implicit
 from rodnet.integrate.newton import NewtonOptions
 from rodnet.integrate.rk45 import integrate_rk45
 from rodnet.integrate.static import solve_static
-from rodnet.io.recorder import Recorder, energy_guard
+from rodnet.io.recorder import FrameCheck, Recorder, energy_guard
 from rodnet.io.restart import restarted, saved_frame
 from rodnet.io.results import output_directory, scene_as_dict, write_npz, write_summary
 from rodnet.io.vtk import VtkSeries
@@ -175,12 +175,45 @@ def _check_supported(system: ThreadSystem, structure: Structure, scene: Scene) -
     count, part = connected_components(graph, directed=False)
     held = (~system.free[:3 * n].reshape(-1, 3)).any(axis=1)   # a supported translation
     loose = sorted(set(range(count)) - set(part[held]))
+    supports = [s.node for s in scene.supports] or "none"
     if loose:
         node = int(np.flatnonzero(part == loose[0])[0])
-        raise SceneError("supports", [s.node for s in scene.supports] or "none",
-                         f"{len(loose)} part(s) of the structure have no supported node (node "
-                         f"{node} is in one): no load holds a free part in a static run. Add "
-                         "[[supports]] or run it dynamically")
+        raise SceneError("supports", supports,
+                         f"{len(loose)} part(s) of the structure have no node with a supported "
+                         f"position (node {node} is in one; supported rotations alone do not "
+                         "hold it): no load holds a free part in a static run. Support a "
+                         "position in [[supports]] or run it dynamically")
+    # a translation along an axis no support of the part holds changes neither the internal
+    # forces nor the dead loads: no load holds it either (the part would drift along it)
+    axes = ~system.free[:3 * n].reshape(-1, 3)
+    for k in range(count):
+        free_axes = [name for name, held_axis in zip("xyz", axes[part == k].any(axis=0))
+                     if not held_axis]
+        if free_axes:
+            node = int(np.flatnonzero(part == k)[0])
+            along = " and ".join(free_axes)
+            raise SceneError("supports", supports,
+                             f"the part of the structure with node {node} is free to translate "
+                             f"along {along}: none of its supports holds that displacement, and "
+                             "no load holds a rigid translation in a static run. Hold it along "
+                             f"{along} in [[supports]] (dofs) or run it dynamically")
+
+
+def _energy_checks(p: Prepared) -> list[FrameCheck]:
+    """The energy guard of a dynamic run whose energy nothing can raise: no loads, and no
+    gravity, or gravity constant in time (its potential then counts) and no free bodies (whose
+    own weight the frames do not account for)."""
+    scene = p.scene
+    sim = scene.simulation
+    if sim.type != "dynamic" or scene.loads:
+        return []
+    if not any(sim.gravity):
+        return [energy_guard()]
+    if sim.gravity_scheduled or any(not body.fixed for body in scene.bodies):
+        return []
+    n = p.structure.n_nodes
+    mass = np.asarray(p.system.model.dof_mass[:3 * n], dtype=float).reshape(n, 3)
+    return [energy_guard(weight=mass * np.asarray(sim.gravity, dtype=float))]
 
 
 # --- the integrators, by name ------------------------------------------------------------
@@ -303,9 +336,8 @@ def run(scene: Scene, directory: str | Path | None = None, *, progress: bool | N
     structure = p.structure
     vtk = VtkSeries(out, structure.segments, p.system.surfaces(), thread=structure.thread) \
         if scene.output.vtk else None
-    unloaded = not any(scene.simulation.gravity) and not scene.loads
     dynamic = scene.simulation.type == "dynamic"
-    checks = ([energy_guard()] if unloaded and dynamic else []) + [p.system.check_frame]
+    checks = _energy_checks(p) + [p.system.check_frame]
     recorder = Recorder(p.system.frame, vtk, checks, skip_first=not dynamic,
                         advice=_stability_advice(p), only={float(t) for t in p.frames})
     bar = Progress(scene.simulation.duration, enabled=progress)

@@ -99,21 +99,36 @@ class Recorder:
         return out
 
 
-def energy_guard(growth: float = 0.1) -> FrameCheck:
-    """A check that stops a run whose kinetic plus elastic energy rises above the first frame's
-    by more than ``growth`` of it: for scenes with nothing that does work on them (no gravity,
-    no loads), whose energy can only fall."""
+def energy_guard(growth: float = 0.1, weight: NDArray[np.float64] | None = None) -> FrameCheck:
+    """A check that stops a run whose energy, which nothing raises, rises.
+
+    Without ``weight``, for scenes with nothing that does work on them (no gravity, no loads):
+    the kinetic plus elastic energy may not rise above the first frame's by more than
+    ``growth`` of it. With ``weight`` (N, 3), the nodes' constant gravity forces ``m_i g`` [N]
+    in a scene without other loads: their potential ``-sum(weight . x)`` is added, and the
+    energy may not rise above the first frame's by more than ``growth`` of the largest kinetic
+    plus elastic energy of the frames so far (the potential has no natural zero). An
+    integrator that is not energy-stable on a stiff nonlinear problem (the midpoint rule on a
+    stiff pendulum at a large fixed step) would otherwise report a diverging run as done."""
     start: list[float] = []
+    largest = [0.0]
 
     def check(t: float, frame: dict[str, Any]) -> None:
-        now = frame["kinetic_energy"] + frame["elastic_energy"]
-        if not start:
-            start.append(now)
+        motion = frame["kinetic_energy"] + frame["elastic_energy"]
+        now = motion
+        if weight is not None:
+            now -= float(np.einsum("ij,ij", weight, frame["positions"]))
         if not np.isfinite(now):
             raise SimulationFailed(f"the state became non-finite (NaN or inf) by t = {t:.6g} s")
-        if now > start[0] * (1.0 + growth) and now - start[0] > 1e-9:
+        if not start:
+            start.append(now)
+        largest[0] = max(largest[0], motion)
+        allowed = growth * (start[0] if weight is None else largest[0])
+        if now - start[0] > max(allowed, 1e-9):
+            cause = "gravity is the only force that does work on it" if weight is not None \
+                else "nothing does work on the structure"
             raise SimulationFailed(
                 f"the energy grew from {start[0]:.6g} J to {now:.6g} J by t = {t:.6g} s although "
-                "nothing does work on the structure: the time integration is unstable at this step")
+                f"{cause}: the time integration is unstable at this step")
 
     return check

@@ -512,6 +512,20 @@ def test_unsupported_static_rod_fails_with_a_message(tmp_path: Path, capsys, sup
     assert len(err.strip().splitlines()) == 1
 
 
+def test_a_static_rod_free_to_translate_is_refused_naming_the_axes(tmp_path: Path,
+                                                                    capsys) -> None:
+    """A rod held at one end along z only, pulled along y at its tip: a translation along x
+    changes neither its internal forces nor its dead load, so no load holds it (the solve
+    drifted along it to x = -1.7e23 m). Refused before anything is written, naming the axis."""
+    scene = tmp_path / "scene.toml"
+    text = rod_toml(0.01, 10, (), tip_force=(0.0, 10.0, 0.0), steps=5)
+    scene.write_text(text + '\n[[supports]]\nnode = "beam:start"\ndofs = ["y", "z"]\n')
+    status = main(["run", str(scene), "-o", str(tmp_path / "out"), "--quiet"])
+    err = capsys.readouterr().err
+    assert status == 2 and "free to translate along x:" in err and "supports" in err
+    assert not (tmp_path / "out").exists()
+
+
 def test_a_rod_on_one_pin_turns_to_its_load(tmp_path: Path) -> None:
     """A mechanism: a straight rod on one pin, pulled across at its tip by 10 N, has to turn a
     quarter turn about the pin to its equilibrium; Newton's method alone does not get there, the
@@ -549,7 +563,7 @@ def test_a_static_rod_without_supports_is_refused_naming_them(tmp_path: Path, ca
     one pin is not refused: its load can hold it, hanging along the load.)"""
     status, err = run_unsupported(tmp_path, capsys, UNSUPPORTED["free-rod"])
     assert status == 2 and "bad input" in err and "[[supports]]" in err
-    assert "no supported node" in err
+    assert "no node with a supported position" in err
     assert not (tmp_path / "out").exists()
 
 
