@@ -83,8 +83,8 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
         "integrators."),
     "simulation.gravity": (
         "m/s^2", "Uniform gravitational acceleration; node `i` gets the force `m_i g`. Static runs "
-        "of Cosserat rods apply it in full at every load step (the load factor scales `[[loads]]` "
-        "only)."),
+        "raise it with the load factor, as the `[[loads]]`: the frame of load factor 0.5 is "
+        "the equilibrium under half the gravity and half the loads."),
     "simulation.gravity_ramp": (
         "s", ">= 0. Dynamic runs: gravity grows linearly from zero to full over this time (as "
         "`[[loads]] ramp`); 0: in full from t = 0. Not in static runs or with `[[bodies]]`."),
