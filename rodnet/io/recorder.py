@@ -124,7 +124,7 @@ def energy_guard(growth: float = 0.1, weight: NDArray[np.float64] | None = None)
             start.append(now)
         largest[0] = max(largest[0], motion)
         allowed = growth * (start[0] if weight is None else largest[0])
-        if now - start[0] > max(allowed, 1e-9):
+        if now - start[0] > max(allowed, 1e-9 + 1e-9 * abs(start[0])):
             cause = "gravity is the only force that does work on it" if weight is not None \
                 else "nothing does work on the structure"
             raise SimulationFailed(
