@@ -165,16 +165,17 @@ def _breaks(frames: NDArray[np.float64], scene: Scene) -> NDArray[np.float64]:
 def _check_supported(system: ThreadSystem, structure: Structure, scene: Scene) -> None:
     """Refuse a static scene that no load can hold: a connected part of the structure without a
     supported position (nor a fixed body it could rest on) moves freely under any load that
-    does not balance itself. Parts held by their load alone (a slack cable between two pins, a
-    net hung from a knot, a rod whose zero modes the load stiffens) are solved."""
+    does not balance itself, and so does a part that no support holds along one of x, y, z.
+    Parts held by their load alone (a slack cable between two pins, a net hung from a knot, a
+    rod whose zero modes the load stiffens) are solved."""
     if any(body.fixed for body in scene.bodies):
         return
     n = structure.n_nodes
     graph = sp.coo_matrix((np.ones(len(structure.segments)), tuple(structure.segments.T)),
                           shape=(n, n))
     count, part = connected_components(graph, directed=False)
-    held = (~system.free[:3 * n].reshape(-1, 3)).any(axis=1)   # a supported translation
-    loose = sorted(set(range(count)) - set(part[held]))
+    axes = ~system.free[:3 * n].reshape(-1, 3)   # (N, 3) the supported translations
+    loose = sorted(set(range(count)) - set(part[axes.any(axis=1)]))
     supports = [s.node for s in scene.supports] or "none"
     if loose:
         node = int(np.flatnonzero(part == loose[0])[0])
@@ -185,7 +186,6 @@ def _check_supported(system: ThreadSystem, structure: Structure, scene: Scene) -
                          "position in [[supports]] or run it dynamically")
     # a translation along an axis no support of the part holds changes neither the internal
     # forces nor the dead loads: no load holds it either (the part would drift along it)
-    axes = ~system.free[:3 * n].reshape(-1, 3)
     for k in range(count):
         free_axes = [name for name, held_axis in zip("xyz", axes[part == k].any(axis=0))
                      if not held_axis]
