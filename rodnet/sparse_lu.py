@@ -7,6 +7,9 @@ Why: on nets SuperLU spends most of its time in set-up rather than arithmetic (a
 which suits Newton's iteration matrices ``M / (beta h^2) + ... + K``: their symmetric part is
 dominated by the positive mass and stiffness terms. A pivot that is not clearly nonzero makes
 :meth:`StaticPatternLU.factorize` return False and the caller falls back to a pivoting LU.
+
+The numeric pass runs over 3 x 3 blocks, a node's translations or rotations: nine products per
+index looked up instead of one (validation/benchmarks/results/static_lu.md).
 """
 
 from __future__ import annotations
@@ -37,18 +40,22 @@ def same_pattern(pattern: Pattern | None, matrix: sp.csr_matrix) -> bool:
 
 
 class StaticPatternLU:
-    """LU without pivoting for every matrix with one symmetric CSR pattern.
+    """LU without pivoting, in 3 x 3 blocks, for every matrix with one symmetric CSR pattern.
+
+    The unknowns are grouped three by three in their order (a node's translations or rotations
+    when the supports remove whole triples; any grouping gives the same factors, a misaligned
+    one only more fill), the last group padded with unit diagonal entries.
 
     Parameters
     ----------
     matrix : csr_matrix (n, n)
-        A matrix with the pattern (its values choose nothing but are used for the ordering
-        call). The pattern must be structurally symmetric.
+        A matrix with the pattern (its values are not used). The pattern must be structurally
+        symmetric.
 
     Raises
     ------
     ValueError
-        When the pattern is not symmetric or lacks a diagonal entry.
+        When the pattern is not symmetric.
     """
 
     def __init__(self, matrix: sp.csr_matrix) -> None:
@@ -64,46 +71,68 @@ class StaticPatternLU:
         if (not np.array_equal(canonical.indptr, transposed.indptr)
                 or not np.array_equal(canonical.indices, transposed.indices)):
             raise ValueError("StaticPatternLU needs a structurally symmetric pattern")
-        # fill-reducing order: SuperLU's minimum degree on A + A^T, computed once
-        pattern = sp.csc_matrix((np.ones(matrix.nnz), matrix.indices, matrix.indptr),
-                                shape=matrix.shape)        # A^T's pattern: the same
-        ordering = spla.splu(pattern + (n + 1.0) * sp.identity(n, format="csc"),
+        N = -(-n // 3)
+        self.n_blocks = N
+        rows = np.repeat(np.arange(n, dtype=np.int64), np.diff(matrix.indptr))
+        cols = matrix.indices.astype(np.int64)
+        # the block pattern, with every diagonal block
+        keys = np.unique(np.concatenate([(rows // 3) * N + cols // 3,
+                                         np.arange(N, dtype=np.int64) * (N + 1)]))
+        blocks = sp.csc_matrix((np.ones(len(keys)), (keys // N, keys % N)), shape=(N, N))
+        # fill-reducing order: SuperLU's minimum degree on the block pattern, computed once
+        ordering = spla.splu(blocks + (N + 1.0) * sp.identity(N, format="csc"),
                              permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
                              options={"SymmetricMode": True})
-        order = np.argsort(ordering.perm_c)            # new index -> old index
-        rank = np.empty(n, np.int64)
-        rank[order] = np.arange(n)
-        self.order = order
-        # B = A[order][:, order] in CSR with sorted columns; where each of A's entries goes
-        rows = np.repeat(np.arange(n), np.diff(matrix.indptr))
-        new_rows, new_cols = rank[rows], rank[matrix.indices]
-        perm = np.lexsort((new_cols, new_rows))      # B entry q takes A entry perm[q]
-        self.source = perm
-        b_cols = new_cols[perm].astype(np.int64)
-        b_ptr = np.concatenate([[0], np.cumsum(np.bincount(new_rows, minlength=n))]).astype(np.int64)
+        order = np.argsort(ordering.perm_c)            # new block -> old block
+        rank = np.empty(N, np.int64)
+        rank[order] = np.arange(N)
+        new_rows, new_cols = rank[keys // N], rank[keys % N]
+        perm = np.lexsort((new_cols, new_rows))
+        b_cols = new_cols[perm]
+        b_rows = new_rows[perm]
+        b_ptr = np.concatenate([[0], np.cumsum(np.bincount(b_rows, minlength=N))]).astype(np.int64)
         self.b_ptr, self.b_cols = b_ptr, b_cols
-        b_rows = np.repeat(np.arange(n), np.diff(b_ptr))
-        key = b_rows * n + b_cols                    # ascending (row-major, sorted)
-        self.transpose = np.searchsorted(key, b_cols * n + b_rows)
-        diagonal = np.searchsorted(key, np.arange(n) * (n + 1))
-        if np.any(diagonal >= len(key)) or np.any(key[np.minimum(diagonal, len(key) - 1)]
-                                                  != np.arange(n) * (n + 1)):
-            raise ValueError("StaticPatternLU needs every diagonal entry in the pattern")
-        self.diagonal = diagonal
-        parent = elimination_tree(n, b_ptr, b_cols)
-        self.reach_ptr, self.reach = row_reaches(n, b_ptr, b_cols, parent)
-        reach_rows = np.repeat(np.arange(n), np.diff(self.reach_ptr))
+        key = b_rows * N + b_cols                      # ascending (row-major, sorted)
+        self.transpose = np.searchsorted(key, b_cols * N + b_rows)
+        self.diagonal = np.searchsorted(key, np.arange(N) * (N + 1))
+        # where every scalar entry of every block is found in the CSR data
+        self.scalar_rows = 3 * order[:, None] + np.arange(3)          # (N, 3), old numbering
+        self.scalar_order = self.scalar_rows.ravel()                  # new unknown -> old
+        real = self.scalar_order < n
+        self.scalar_rows = np.where(self.scalar_rows < n, self.scalar_rows, -1)
+        canonical_keys = rows * n + cols
+        sorter = np.argsort(canonical_keys)
+        source = np.full((len(key), 3, 3), -1, np.int64)
+        old_r, old_c = order[b_rows], order[b_cols]
+        for a in range(3):
+            for b in range(3):
+                r, c = 3 * old_r + a, 3 * old_c + b
+                inside = (r < n) & (c < n)
+                want = np.where(inside, r * n + c, -1)
+                at = np.minimum(np.searchsorted(canonical_keys, want, sorter=sorter),
+                                len(sorter) - 1)
+                found = inside & (canonical_keys[sorter[at]] == want)
+                source[:, a, b] = np.where(found, sorter[at], -1)
+                if a == b:   # the padding unknowns' unit diagonal
+                    source[:, a, b] = np.where((b_rows == b_cols) & (r >= n), -2,
+                                               source[:, a, b])
+        self.source = source
+        self._real = real
+        parent = elimination_tree(N, b_ptr, b_cols)
+        self.reach_ptr, self.reach = row_reaches(N, b_ptr, b_cols, parent)
+        reach_rows = np.repeat(np.arange(N), np.diff(self.reach_ptr))
         by_column = np.lexsort((reach_rows, self.reach))
         self.col_rows = reach_rows[by_column].astype(np.int64)
-        self.col_ptr = np.concatenate([[0], np.cumsum(np.bincount(self.reach, minlength=n))]
+        self.col_ptr = np.concatenate([[0], np.cumsum(np.bincount(self.reach, minlength=N))]
                                       ).astype(np.int64)
         size = len(self.reach)
-        self.lower, self.upper = np.empty(size), np.empty(size)
-        self.pivots = np.empty(n)
-        self._work_u, self._work_l = np.zeros(n), np.zeros(n)
-        self._fill = np.zeros(n, np.int64)
-        self.factor_entries = 2 * size + n
-        """Entries of L and U together (the diagonal of L not counted)."""
+        self.lower, self.upper = np.empty((size, 3, 3)), np.empty((size, 3, 3))
+        self.pivot_lu = np.empty((N, 3, 3))
+        self._work_u, self._work_l = np.zeros((N, 3, 3)), np.zeros((N, 3, 3))
+        self._fill = np.zeros(N, np.int64)
+        self._big = np.zeros(n)
+        self.factor_entries = 9 * (2 * size + N)
+        """Entries of L and U together, blocks counted whole (the padding's included)."""
 
     def matches(self, matrix: sp.csr_matrix) -> bool:
         """Whether ``matrix`` has this object's pattern."""
@@ -112,20 +141,20 @@ class StaticPatternLU:
     def factorize(self, matrix: sp.csr_matrix) -> bool:
         """Numeric factorisation of ``matrix`` (this pattern); False when a pivot is (nearly)
         zero or not finite, and the factors must not be used."""
-        data = np.ascontiguousarray(matrix.data[self.source])
-        bad = factor_numeric(self.n, self.b_ptr, self.b_cols, data, self.transpose, self.diagonal,
+        bad = factor_numeric(self.n_blocks, self.b_ptr, self.b_cols, self.transpose,
+                             self.diagonal, self.source, np.ascontiguousarray(matrix.data),
+                             np.asarray(matrix.indptr, np.int64), self.scalar_rows,
                              self.reach_ptr, self.reach, self.col_ptr, self.col_rows, self.lower,
-                             self.upper, self.pivots, self._work_u, self._work_l, self._fill)
-        if bad >= 0:
-            self._work_u[:] = 0.0
-            self._work_l[:] = 0.0
-            return False
-        return True
+                             self.upper, self.pivot_lu, self._work_u, self._work_l, self._fill,
+                             self._big)
+        return bad < 0
 
     def solve(self, rhs: FloatArray) -> FloatArray:
         """``A^-1 rhs`` for the last factorised matrix; rhs (n,)."""
-        x = np.array(rhs[self.order], dtype=float)
-        solve_factored(self.col_ptr, self.col_rows, self.lower, self.upper, self.pivots, x)
-        out = np.empty_like(x)
-        out[self.order] = x
+        x = np.zeros(3 * self.n_blocks)
+        x[self._real] = rhs[self.scalar_order[self._real]]
+        x = x.reshape(-1, 3)
+        solve_factored(self.col_ptr, self.col_rows, self.lower, self.upper, self.pivot_lu, x)
+        out = np.empty(self.n)
+        out[self.scalar_order[self._real]] = x.ravel()[self._real]
         return out

@@ -49,6 +49,36 @@ def test_solution_equals_superlu(seed: int) -> None:
     assert np.max(np.abs(lu.solve(rhs) - expected)) <= 1e-10 * np.max(np.abs(expected))
 
 
+def test_unknowns_not_in_node_triples() -> None:
+    """Supports that remove single DOFs leave unknowns that are not a node's triple, and a
+    count that is not a multiple of three: the blocks then mix nodes and the last is padded,
+    and the solution is still SuperLU's."""
+    A = net_like(9, 6)
+    keep = np.setdiff1d(np.arange(A.shape[0]), [0, 4, 100, 101])   # 243 - 4 = 3 * 79 + 2
+    A = A[keep][:, keep].tocsr()
+    A.sort_indices()
+    lu = StaticPatternLU(A)
+    assert A.shape[0] % 3 == 2
+    assert lu.factorize(A)
+    rhs = np.random.default_rng(6).normal(size=A.shape[0])
+    expected = spla.spsolve(A.tocsc(), rhs)
+    assert np.max(np.abs(lu.solve(rhs) - expected)) <= 1e-10 * np.max(np.abs(expected))
+
+
+def test_zero_pivot_inside_a_block_is_reported() -> None:
+    """A node block whose second pivot vanishes ([[1, 1], [1, 1]] in its leading corner)."""
+    A = net_like(5, 7).tolil()
+    A[3, 3], A[3, 4], A[4, 3], A[4, 4] = 1.0, 1.0, 1.0, 1.0
+    A[3, 5] = A[4, 5] = A[5, 3] = A[5, 4] = 0.0
+    for j in range(6, A.shape[0]):        # node 1 decoupled from later nodes, and earlier ones
+        A[3, j] = A[4, j] = A[j, 3] = A[j, 4] = 0.0
+    for j in range(3):
+        A[3, j] = A[4, j] = A[j, 3] = A[j, 4] = 0.0
+    A = A.tocsr()
+    lu = StaticPatternLU(A)
+    assert not lu.factorize(A)
+
+
 def test_fill_is_reduced() -> None:
     """The ordering keeps the factor far below a dense one (a 12 x 12 grid: 432 unknowns)."""
     A = net_like(12, 3)
