@@ -798,6 +798,77 @@ def _end_state(quat, W, offset_q, offset_R, e, s, r):  # pragma: no cover - comp
 
 
 @numba.njit(cache=True)
+def element_pose(x, quat, pos_nodes, rot_nodes, offset_q):  # pragma: no cover - compiled
+    """Element end positions (E, 2, 3) and material quaternions ``q_node Q`` (E, 2, 4) from the
+    node positions ``x`` (N, 3) and quaternions ``quat`` (R, 4); ``offset_q`` (E, 2, 4) holds
+    the ends' offsets ``Q`` ((0, 2, 4): none)."""
+    n_el = pos_nodes.shape[0]
+    xe = np.empty((n_el, 2, 3))
+    qe = np.empty((n_el, 2, 4))
+    offset = offset_q.shape[0] > 0
+    for e in range(n_el):
+        for s in range(2):
+            a, r = pos_nodes[e, s], rot_nodes[e, s]
+            for i in range(3):
+                xe[e, s, i] = x[a, i]
+            if offset:
+                qe[e, s, 0], qe[e, s, 1], qe[e, s, 2], qe[e, s, 3] = _quat_product(
+                    quat[r, 0], quat[r, 1], quat[r, 2], quat[r, 3], offset_q[e, s, 0],
+                    offset_q[e, s, 1], offset_q[e, s, 2], offset_q[e, s, 3])
+            else:
+                for i in range(4):
+                    qe[e, s, i] = quat[r, i]
+    return xe, qe
+
+
+@numba.njit(cache=True)
+def element_velocities(v, element_dofs, offset_R):  # pragma: no cover - compiled
+    """Element velocities (E, 12) ``[v_a, Q_a^T W_a, v_b, Q_b^T W_b]`` from the generalized
+    velocities ``v`` (n_dof,) at ``element_dofs`` (E, 12); ``offset_R`` (E, 2, 3, 3) holds the
+    ends' offset rotations ``Q`` ((0, 2, 3, 3): none)."""
+    n_el = element_dofs.shape[0]
+    ve = np.empty((n_el, 12))
+    offset = offset_R.shape[0] > 0
+    for e in range(n_el):
+        for j in range(12):
+            ve[e, j] = v[element_dofs[e, j]]
+        if offset:
+            for s in range(2):
+                o = 6 * s + 3
+                w0, w1, w2 = ve[e, o], ve[e, o + 1], ve[e, o + 2]
+                for i in range(3):
+                    ve[e, o + i] = (offset_R[e, s, 0, i] * w0 + offset_R[e, s, 1, i] * w1
+                                    + offset_R[e, s, 2, i] * w2)
+    return ve
+
+
+@numba.njit(cache=True)
+def to_node_frames(f, K, C, offset_R):  # pragma: no cover - compiled
+    """Element forces ``f`` (E, 12) and, unless they are empty, blocks ``K``, ``C`` (E, 12, 12)
+    from the ends' material frames to the rotation nodes' frames, in place: ``T f``, ``T K
+    T^T``, ``T C T^T`` with ``T = blockdiag(I, Q_a, I, Q_b)`` and ``Q`` = ``offset_R`` (E, 2,
+    3, 3)."""
+    for e in range(f.shape[0]):
+        for s in range(2):
+            Q = offset_R[e, s]
+            o = 6 * s + 3
+            f0, f1, f2 = f[e, o], f[e, o + 1], f[e, o + 2]
+            for i in range(3):
+                f[e, o + i] = Q[i, 0] * f0 + Q[i, 1] * f1 + Q[i, 2] * f2
+            for M in (K, C):
+                if M.shape[0] == 0:
+                    continue
+                for c in range(12):        # rows of the end's block: Q M[o:o+3, c]
+                    m0, m1, m2 = M[e, o, c], M[e, o + 1, c], M[e, o + 2, c]
+                    for i in range(3):
+                        M[e, o + i, c] = Q[i, 0] * m0 + Q[i, 1] * m1 + Q[i, 2] * m2
+                for r in range(12):        # columns: M[r, o:o+3] Q^T
+                    m0, m1, m2 = M[e, r, o], M[e, r, o + 1], M[e, r, o + 2]
+                    for i in range(3):
+                        M[e, r, o + i] = Q[i, 0] * m0 + Q[i, 1] * m1 + Q[i, 2] * m2
+
+
+@numba.njit(cache=True)
 def _series8(series, row, x):  # pragma: no cover - compiled
     """:func:`_horner` unrolled for the eight coefficients of :data:`SERIES_ARGUMENTS`."""
     c = series[row]

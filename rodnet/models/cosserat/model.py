@@ -25,8 +25,9 @@ from rodnet.kernels import so3, so3_compiled
 from rodnet.kernels.convex import convex_blocks
 from rodnet.kernels.cosserat import (internal_force, internal_force_and_tangents, section_state,
                                      step_potential, strain_energy)
-from rodnet.kernels.cosserat_compiled import (SERIES_ARGUMENTS, RodElements, element_rotation,
-                                              strains_and_rates)
+from rodnet.kernels.cosserat_compiled import (SERIES_ARGUMENTS, RodElements, element_pose,
+                                              element_rotation, element_velocities,
+                                              strains_and_rates, to_node_frames)
 from rodnet.kernels.hinge import Hinges, no_hinges
 from rodnet.kernels.schedule import LoadSchedule, factors
 from rodnet.kernels.segments import Segments
@@ -142,31 +143,26 @@ class CosseratModel:
 
     def _element_pose(self, q: Configuration) -> tuple[FloatArray, FloatArray]:
         """Element end positions (E, 2, 3) and material quaternions (E, 2, 4)."""
-        quat = q.quat[self.rot_nodes]
-        if self.end_offset is not None:
-            quat = so3.quat_multiply(quat, self.end_offset)
-        return q.x[self.pos_nodes], quat
+        return element_pose(q.x, q.quat, self.pos_nodes, self.rot_nodes, self._offsets[0])
 
     def _element_state(self, q: Configuration, v: FloatArray) -> tuple[FloatArray, ...]:
         """Element end positions (E, 2, 3), material quaternions (E, 2, 4), velocities (E, 12)
         with angular velocities in the end's material frame."""
         x, quat = self._element_pose(q)
-        ve = v[self.element_dofs]
-        if self.end_offset is not None:
-            ve = np.einsum("eji,ej->ei", self._offset_transform, ve)
-        return x, quat, ve
+        return x, quat, element_velocities(v, self.element_dofs, self._offsets[1])
 
     @property
-    def _offset_transform(self) -> FloatArray:
-        """(E, 12, 12) ``blockdiag(I, Q_a, I, Q_b)``: element-end components to node components."""
-        cached = self.__dict__.get("_offset_cache")
+    def _offsets(self) -> tuple[FloatArray, FloatArray]:
+        """The ends' offsets as quaternions (E, 2, 4) and rotation matrices (E, 2, 3, 3)
+        (both with no elements when there are none)."""
+        cached = self.__dict__.get("_offsets_cache")
         if cached is None:
-            Q = so3.quat_to_matrix(self.end_offset)
-            cached = np.zeros((len(Q), 12, 12))
-            for k, (i, j) in enumerate(((0, 3), (6, 9))):
-                cached[:, i:i + 3, i:i + 3] = np.eye(3)
-                cached[:, j:j + 3, j:j + 3] = Q[:, k]
-            object.__setattr__(self, "_offset_cache", cached)
+            if self.end_offset is None:
+                cached = (np.zeros((0, 2, 4)), np.zeros((0, 2, 3, 3)))
+            else:
+                offset_q = np.ascontiguousarray(self.end_offset, dtype=float)
+                cached = (offset_q, np.ascontiguousarray(so3.quat_to_matrix(offset_q)))
+            object.__setattr__(self, "_offsets_cache", cached)
         return cached
 
     def _load_scale(self, t: float) -> FloatArray:
@@ -238,11 +234,9 @@ class CosseratModel:
         else:
             f_el, K_el, C_el = internal_force(*args), None, None
         if self.end_offset is not None:  # back to the rotation nodes' frames
-            T = self._offset_transform
-            f_el = np.einsum("eij,ej->ei", T, f_el)
-            if need_matrices:
-                K_el = T @ K_el @ T.transpose(0, 2, 1)
-                C_el = T @ C_el @ T.transpose(0, 2, 1)
+            empty = np.zeros((0, 12, 12))
+            to_node_frames(f_el, K_el if need_matrices else empty,
+                           C_el if need_matrices else empty, self._offsets[1])
         g = assemble_vector(self.element_dofs, f_el, self.n_dof)
         gyro, d_gyro = self._gyroscopic(v)
         g[3 * self.n_nodes:] += gyro.ravel()
@@ -288,11 +282,7 @@ class CosseratModel:
                                       RodElements]:
         """The model's arrays for the compiled explicit loop (FORMULATION.md §9b)."""
         f = np.ascontiguousarray
-        if self.end_offset is None:
-            offset_q, offset_R = np.zeros((0, 2, 4)), np.zeros((0, 2, 3, 3))
-        else:
-            offset_q = f(self.end_offset, dtype=float)
-            offset_R = f(so3.quat_to_matrix(offset_q))
+        offset_q, offset_R = self._offsets
         rods = RodElements(f(self.pos_nodes, dtype=np.int64), f(self.rot_nodes, dtype=np.int64),
                            offset_q, offset_R, f(self.rest_length, dtype=float),
                            f(self.reference_strain, dtype=float), f(self.stiffness, dtype=float),
