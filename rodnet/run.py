@@ -291,7 +291,7 @@ INTEGRATORS: dict[str, Integrate] = {
                                                               bar, stats=stats),
     "rk45": lambda p, rec, bar, stats: integrate_rk45(p.system, p.state, p.times,
                                                       p.scene.simulation.rtol, rec, bar,
-                                                      stats=stats),
+                                                      stats=stats, breaks=p.breaks),
 }
 """``simulation.integrator`` -> how a prepared run is integrated."""
 

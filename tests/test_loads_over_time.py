@@ -62,7 +62,7 @@ def _momentum_change(tmp_path: Path, integrator: str, model: str, timing: str) -
 @pytest.mark.parametrize("integrator, model", [("explicit", "lumped"), ("bdf2", "cosserat"),
                                                ("backward-euler", "cosserat"),
                                                ("generalized-alpha", "cosserat"),
-                                               ("explicit", "cosserat")])
+                                               ("explicit", "cosserat"), ("rk45", "lumped")])
 def test_a_pulse_gives_the_impulse_force_times_duration(tmp_path: Path, integrator: str,
                                                         model: str) -> None:
     # start and stop fall between frames and off the steps of dt
@@ -71,9 +71,11 @@ def test_a_pulse_gives_the_impulse_force_times_duration(tmp_path: Path, integrat
     np.testing.assert_allclose(change, expected, rtol=1e-9, atol=1e-12)
 
 
-def test_a_table_of_jumps_gives_the_integral_of_its_factor(tmp_path: Path) -> None:
+@pytest.mark.parametrize("integrator, model", [("bdf2", "cosserat"), ("rk45", "lumped")])
+def test_a_table_of_jumps_gives_the_integral_of_its_factor(tmp_path: Path, integrator: str,
+                                                           model: str) -> None:
     table = "table = [[0.0, 1.0], [0.1, 1.0], [0.1, -0.5], [0.25, -0.5], [0.25, 0.0]]"
-    change = _momentum_change(tmp_path, "bdf2", "cosserat", table)
+    change = _momentum_change(tmp_path, integrator, model, table)
     np.testing.assert_allclose(change, np.array(FORCE) * (0.1 - 0.5 * 0.15), rtol=1e-9,
                                atol=1e-12)
 

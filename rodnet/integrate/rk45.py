@@ -22,9 +22,15 @@ from rodnet.state import Configuration, State
 
 def integrate_rk45(system: System, state: State, times: NDArray[np.float64], rtol: float,
                    on_frame: FrameSink, on_progress: ProgressSink | None = None,
-                   first_step: float | None = None, stats: StepStats | None = None) -> StepStats:
+                   first_step: float | None = None, stats: StepStats | None = None,
+                   breaks: NDArray[np.float64] | None = None) -> StepStats:
     """Integrate with RK45 (relative tolerance ``rtol``; absolute tolerance ``rtol`` times 1 mm
     and 1 mm/s) and hand the interpolated state at every frame time to ``on_frame``.
+
+    The solver is started afresh at every time in ``breaks`` (where a load switches on or off
+    or its table jumps), so no step reaches across a jump: a step ending at a break sees the
+    loads just before it (their left limit), the next starts with those after it, and a load
+    pulse gives its impulse exactly.
 
     Raises
     ------
@@ -38,30 +44,37 @@ def integrate_rk45(system: System, state: State, times: NDArray[np.float64], rto
     stats = StepStats() if stats is None else stats  # filled in place: kept if the run fails
     work, no_rotation = scratch(problem), np.zeros((0, 4))
     spin, inv_mass = np.zeros((0, 3)), problem.nodes.inv_mass
-
-    def rhs(t: float, y: NDArray[np.float64]) -> NDArray[np.float64]:
-        x, v = y[:3 * n].reshape(n, 3), y[3 * n:].reshape(n, 3)
-        forces(t, x, no_rotation, v, spin, problem, work)
-        return np.concatenate([y[3 * n:], (work.f_node * inv_mass).ravel()])
-
-    y0 = np.concatenate([np.ravel(state.q.x), np.ravel(state.v)]).astype(float)
-    solver = RK45(rhs, float(times[0]), y0, float(times[-1]), rtol=rtol, atol=rtol * 1e-3,
-                  first_step=first_step)
-    on_frame(float(times[0]), state)
+    t0, t_end = float(times[0]), float(times[-1])
+    inner = [float(b) for b in (breaks if breaks is not None else ()) if t0 < b < t_end]
+    bounds = [t0, *sorted(set(inner)), t_end]
+    y = np.concatenate([np.ravel(state.q.x), np.ravel(state.v)]).astype(float)
+    on_frame(t0, state)
     next_frame = 1
-    while next_frame < len(times):
-        message = solver.step()
-        if solver.status == "failed" or not np.isfinite(solver.y).all():
-            raise SimulationFailed(f"RK45 failed at t = {solver.t:.6g} s: {message or 'non-finite state'}")
-        stats.record_step(solver.step_size)
-        dense = solver.dense_output()
-        while next_frame < len(times) and times[next_frame] <= solver.t + 1e-12:
-            y = dense(times[next_frame]) if times[next_frame] < solver.t else solver.y
-            state.q = Configuration(y[:3 * n].reshape(n, 3).copy())
-            state.v = y[3 * n:].copy()
-            on_frame(float(times[next_frame]), state)
-            next_frame += 1
-        if on_progress is not None and stats.steps % 50 == 0:
-            on_progress(float(solver.t), float(solver.step_size), stats)
-    stats.function_evaluations = solver.nfev
+    for start, stop in zip(bounds[:-1], bounds[1:]):
+        before_stop = float(np.nextafter(stop, start))   # the loads' left limit at the break
+
+        def rhs(t: float, y: NDArray[np.float64]) -> NDArray[np.float64]:
+            x, v = y[:3 * n].reshape(n, 3), y[3 * n:].reshape(n, 3)
+            forces(min(t, before_stop), x, no_rotation, v, spin, problem, work)
+            return np.concatenate([y[3 * n:], (work.f_node * inv_mass).ravel()])
+
+        solver = RK45(rhs, start, y, stop, rtol=rtol, atol=rtol * 1e-3, first_step=first_step)
+        while solver.status == "running":
+            message = solver.step()
+            if solver.status == "failed" or not np.isfinite(solver.y).all():
+                raise SimulationFailed(
+                    f"RK45 failed at t = {solver.t:.6g} s: {message or 'non-finite state'}")
+            stats.record_step(solver.step_size)
+            dense = solver.dense_output()
+            while next_frame < len(times) and times[next_frame] <= solver.t + 1e-12:
+                at = dense(times[next_frame]) if times[next_frame] < solver.t else solver.y
+                state.q = Configuration(at[:3 * n].reshape(n, 3).copy())
+                state.v = at[3 * n:].copy()
+                on_frame(float(times[next_frame]), state)
+                next_frame += 1
+            if on_progress is not None and stats.steps % 50 == 0:
+                on_progress(float(solver.t), float(solver.step_size), stats)
+        y = solver.y
+        first_step = None
+        stats.function_evaluations += solver.nfev
     return stats
