@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
 
 class SceneError(ValueError):
     """A scene (or a command-line override) that cannot be run.
@@ -20,12 +22,37 @@ class SceneError(ValueError):
 
     def __init__(self, key: str, value: Any, allowed: str) -> None:
         self.key, self.value, self.allowed = key, value, allowed
-        super().__init__(f"{key} = {value!r}: {allowed}" if key else allowed)
+        if not key:
+            text = allowed
+        elif value is None:
+            text = f"{key} is not set: {allowed}"
+        else:
+            text = f"{key} = {shown(value)}: {allowed}"
+        super().__init__(text)
 
     def within(self, prefix: str) -> SceneError:
         """Return the same error with ``prefix`` put in front of its key."""
         key = f"{prefix}.{self.key}" if self.key else prefix
         return SceneError(key, self.value, self.allowed)
+
+
+def shown(value: Any) -> str:
+    """``value`` as it is written in a scene file (TOML): ``true``, ``'text'``, ``[1.0, 2]``."""
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):   # a literal string where it can be one, as the messages quote
+        if "'" not in value and "\n" not in value:
+            return f"'{value}'"
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") + '"'
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(shown(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{k} = {shown(v)}" for k, v in value.items()) + "}"
+    return repr(value)
 
 
 class SimulationFailed(RuntimeError):

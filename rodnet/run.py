@@ -440,6 +440,9 @@ def _stop_on_signals() -> Iterator[StopRequest]:
 def _stability_advice(p: Prepared) -> str:
     """What to change when a run turns unstable."""
     if p.scene.integrator != "explicit":
+        if p.scene.simulation.adaptive:
+            return ("set a smaller simulation.error_tolerance or simulation.dt_max (below the "
+                    "period of the fastest motion that matters, such as a contact's)")
         return IMPLICIT_ADVICE
     if p.built.rotary_inertia_scale is not None:
         return ("reduce simulation.explicit_safety; if integrator.max_element_rotation in "
@@ -447,12 +450,28 @@ def _stability_advice(p: Prepared) -> str:
     return "reduce simulation.explicit_safety (or simulation.dt with adaptive = false)"
 
 
+def _shared_supports(p: Prepared) -> list[str]:
+    """A warning for every node that more than one ``[[supports]]`` entry holds: their fixed
+    DOFs are combined, which may not be what was meant (a pin and a clamp on one node make a
+    clamp)."""
+    holders: dict[int, list[int]] = {}
+    for i, support in enumerate(p.scene.supports):
+        holders.setdefault(p.structure.node(support.node, f"supports[{i}].node"), []).append(i)
+    out = []
+    for node, entries in holders.items():
+        if len(entries) > 1:
+            names = [f"supports[{i}]" for i in entries]
+            out.append(f"{', '.join(names[:-1])} and {names[-1]} hold the same node {node}: the "
+                       "DOFs they fix are combined")
+    return out
+
+
 def _warnings(p: Prepared, stats: StepStats, frame_rotation: float) -> list[str]:
     """What the user should know about a completed or failed run: a clamp on threads without
     rotations (it holds the node's position only, as a pin does: such threads pass no moment);
     a static equilibrium that is unstable (:func:`rodnet.integrate.static.unstable`);
     a rod element turned past the rotation stop (C52), where the stop's moment, not the
-    section, resisted its rotation."""
+    section, resisted its rotation; a node held by more than one support entry."""
     out = []
     if not len(p.model.rotation_dofs()):
         label = MODELS[p.built.variant].label
@@ -461,6 +480,7 @@ def _warnings(p: Prepared, stats: StepStats, frame_rotation: float) -> list[str]
                 "carrying no bending moment); use model.type = 'cosserat' with bending for a "
                 "clamped rod" for i, support in enumerate(p.scene.supports)
                 if support.dofs is None and support.fix == "clamp"]
+    out += _shared_supports(p)
     if stats.extra.get("unstable"):
         out.append("the static equilibrium found is unstable: its tangent stiffness has a "
                    "negative eigenvalue (a link or column in compression that would buckle, a "

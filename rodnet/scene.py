@@ -81,7 +81,9 @@ def apply_overrides(data: dict[str, Any], overrides: typing.Sequence[str]) -> di
         for i, part in enumerate(parts[:-1]):
             if isinstance(node, list):
                 if not part.isdigit() or int(part) >= len(node):
-                    raise SceneError(".".join(parts[:i + 1]), part,
+                    shown_key = "".join(f"[{p}]" if p.isdigit() else ("." if j else "") + p
+                                        for j, p in enumerate(parts[:i + 1]))
+                    raise SceneError(shown_key, int(part) if part.isdigit() else part,
                                      f"index must be 0..{len(node) - 1} in this scene")
                 node = node[int(part)]
             else:
@@ -167,5 +169,5 @@ def _convert(hint: Any, value: Any, key: str) -> Any:
         if len(args) == 2 and args[1] is Ellipsis:
             return tuple(_convert(args[0], v, f"{key}[{i}]") for i, v in enumerate(value))
         _expect(len(value) == len(args), key, value, f"must be an array of {len(args)} numbers")
-        return tuple(_convert(a, v, key) for a, v in zip(args, value))
+        return tuple(_convert(a, v, f"{key}[{i}]") for i, (a, v) in enumerate(zip(args, value)))
     raise TypeError(f"no converter for {hint!r}")  # a programming error, not bad input

@@ -195,6 +195,24 @@ def test_warning_when_an_element_reaches_the_rotation_stop(tmp_path: Path, capsy
     assert json.loads((out / "summary.json").read_text())["warnings"] == []
 
 
+def test_two_supports_on_one_node_are_combined_and_said_so(tmp_path: Path) -> None:
+    """A pin and a clamp on the cantilever's root: the run is the clamped one (tip deflection P
+    L^3 / 3 EI within 1 %), with a warning naming both entries."""
+    out = tmp_path / "two"
+    text = ROLLUP.read_text()
+    assert text.count("[[supports]]") == 1
+    scene = tmp_path / "two.toml"
+    scene.write_text(text + '\n[[supports]]\nnode = "beam:start"\nfix = "pin"\n')
+    assert main(["run", str(scene), "-o", str(out), "--quiet", "--set",
+                 "loads[0].moment=[0, 0, 0]", "--set", "loads[0].force=[0, 0, -1]"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    tip = np.load(out / "result.npz")["positions"][-1, summary["nodes"]["beam:end"]]
+    EI = 2.0e11 * np.pi * 0.01**4 / 64
+    assert tip[2] == pytest.approx(-1.0 / (3.0 * EI), rel=1e-2)
+    assert summary["warnings"] == ["supports[0] and supports[1] hold the same node 0: the DOFs "
+                                   "they fix are combined"]
+
+
 @pytest.mark.parametrize("model", ["lumped", "cosserat"])
 def test_a_clamp_on_threads_without_rotations_is_a_pin_and_says_so(tmp_path: Path, capsys,
                                                                    model: str) -> None:

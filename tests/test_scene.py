@@ -47,6 +47,19 @@ def test_bad_values_are_named(override: str, key: str, allowed: str) -> None:
     assert allowed in str(info.value)
 
 
+@pytest.mark.parametrize("override,message", [
+    ("net.packing=true", "net.packing = true: must be a number"),
+    ("net.direction=[0, nan, 1]", "net.direction[1] = nan: must be a finite number"),
+    ("materials[3].density=1.0", "materials[3] = 3: index must be 0..0"),
+])
+def test_bad_values_are_shown_as_a_scene_writes_them(override: str, message: str) -> None:
+    """The value in a message is TOML (true, not Python's True), and an array's bad component
+    and a list's bad index are named as the scene's key paths write them."""
+    with pytest.raises(SceneError) as info:
+        scene_from_toml(small_net_toml(), [override])
+    assert str(info.value).startswith(message)
+
+
 def test_unknown_section_and_missing_key() -> None:
     with pytest.raises(SceneError, match="unknown section"):
         scene_from_toml(small_net_toml() + "\n[netz]\nx = 1\n")
