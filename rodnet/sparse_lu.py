@@ -95,11 +95,13 @@ class StaticPatternLU:
         key = b_rows * N + b_cols                      # ascending (row-major, sorted)
         self.transpose = np.searchsorted(key, b_cols * N + b_rows)
         self.diagonal = np.searchsorted(key, np.arange(N) * (N + 1))
+        # the unknowns in elimination order (old numbering; n and above: padding)
+        scalar = 3 * order[:, None] + np.arange(3)                     # (N, 3)
+        self.scalar_rows = np.where(scalar < n, scalar, -1)
+        real = np.flatnonzero(scalar.ravel() < n)
+        self._real, self._real_order = real, scalar.ravel()[real]   # where each unknown sits
+        self._scalar_ptr = np.asarray(matrix.indptr, np.int64)
         # where every scalar entry of every block is found in the CSR data
-        self.scalar_rows = 3 * order[:, None] + np.arange(3)          # (N, 3), old numbering
-        self.scalar_order = self.scalar_rows.ravel()                  # new unknown -> old
-        real = self.scalar_order < n
-        self.scalar_rows = np.where(self.scalar_rows < n, self.scalar_rows, -1)
         canonical_keys = rows * n + cols
         sorter = np.argsort(canonical_keys)
         source = np.full((len(key), 3, 3), -1, np.int64)
@@ -117,7 +119,6 @@ class StaticPatternLU:
                     source[:, a, b] = np.where((b_rows == b_cols) & (r >= n), -2,
                                                source[:, a, b])
         self.source = source
-        self._real = real
         parent = elimination_tree(N, b_ptr, b_cols)
         self.reach_ptr, self.reach = row_reaches(N, b_ptr, b_cols, parent)
         reach_rows = np.repeat(np.arange(N), np.diff(self.reach_ptr))
@@ -143,7 +144,7 @@ class StaticPatternLU:
         zero or not finite, and the factors must not be used."""
         bad = factor_numeric(self.n_blocks, self.b_ptr, self.b_cols, self.transpose,
                              self.diagonal, self.source, np.ascontiguousarray(matrix.data),
-                             np.asarray(matrix.indptr, np.int64), self.scalar_rows,
+                             self._scalar_ptr, self.scalar_rows,
                              self.reach_ptr, self.reach, self.col_ptr, self.col_rows, self.lower,
                              self.upper, self.pivot_lu, self._work_u, self._work_l, self._fill,
                              self._big)
@@ -152,9 +153,9 @@ class StaticPatternLU:
     def solve(self, rhs: FloatArray) -> FloatArray:
         """``A^-1 rhs`` for the last factorised matrix; rhs (n,)."""
         x = np.zeros(3 * self.n_blocks)
-        x[self._real] = rhs[self.scalar_order[self._real]]
-        x = x.reshape(-1, 3)
-        solve_factored(self.col_ptr, self.col_rows, self.lower, self.upper, self.pivot_lu, x)
+        x[self._real] = rhs[self._real_order]
+        solve_factored(self.col_ptr, self.col_rows, self.lower, self.upper, self.pivot_lu,
+                       x.reshape(-1, 3))
         out = np.empty(self.n)
-        out[self.scalar_order[self._real]] = x.ravel()[self._real]
+        out[self._real_order] = x[self._real]
         return out
