@@ -206,7 +206,8 @@ def unstable(system: System, q: Configuration, load: float) -> bool:
 def negative_curvature(system: System, q: Configuration, load: float) -> FloatArray | None:
     """A direction (free DOFs) along which the static potential at ``q`` curves down, or None
     where the tangent stiffness ``K`` is positive semidefinite (no eigenvalue of its symmetric
-    part below ``-SEMIDEFINITE`` times its largest diagonal entry).
+    part below ``-SEMIDEFINITE`` times its largest diagonal entry, or none whose direction's
+    curvature ``y^T S y`` stands out of the round-off of its products, :data:`ROUNDOFF`).
 
     The symmetric part, shifted by that tolerance, is factorised ``P (S + d I) P^T = L D L^T``
     (SuperLU in symmetric mode without pivoting off the diagonal): ``D`` has as many negative
@@ -235,12 +236,25 @@ def negative_curvature(system: System, q: Configuration, load: float) -> FloatAr
     unit = np.zeros(S.shape[0])
     unit[j] = 1.0
     # S + d I = Pr^T L D L^T Pr with Pr[perm_r[k], k] = 1 (scipy's splu): x = z[perm_r]
-    return spla.spsolve_triangular(lu.L.T.tocsr(), unit, lower=False)[lu.perm_r]
+    y = spla.spsolve_triangular(lu.L.T.tocsr(), unit, lower=False)[lu.perm_r]
+    # y^T S y = D_jj - d |y|^2 < 0 in exact arithmetic; the pivot is trusted only where the
+    # product, taken directly, is negative beyond its own round-off
+    curvature = float(y @ (S @ y))
+    bound = float(np.abs(y) @ (abs(S) @ np.abs(y)))
+    return y if curvature < -ROUNDOFF * bound else None
 
 
-SEMIDEFINITE = 1e-9
+SEMIDEFINITE = 1e-13
 """Eigenvalues of the tangent stiffness above ``-SEMIDEFINITE`` times its largest diagonal entry
-count as non-negative (zero modes such as the free twist of a pinned rod are stable enough)."""
+count as non-negative (zero modes such as the free twist of a pinned rod are stable enough).
+Small, because a slender rod's soft modes sit far below its stiff ones: a column of EA L^2 / EI
+= 1e7 in 20 elements at 1.5 times its buckling load has the eigenvalue -0.049 against a largest
+diagonal entry of 4e8 (-1.2e-10 of it), which 1e-9 let pass as stable; a pinned rod's free twist
+computes to about 1e-8 (2e-17 of it)."""
+
+ROUNDOFF = 1e-14
+"""A direction ``y`` of negative curvature counts where ``y^T S y < -ROUNDOFF |y|^T |S| |y|``:
+about 50 times the unit round-off, above the error of the products that sum to ``y^T S y``."""
 
 
 def _rotation_mask(system: System) -> NDArray[np.bool_]:

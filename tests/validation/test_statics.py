@@ -318,6 +318,35 @@ def test_static_solution_does_not_depend_on_load_steps(tmp_path: Path) -> None:
 
 
 
+def clamped_rod_toml(material: str, length: float, tip_force: list[float],
+                     load_steps: int, elements: int = 20) -> str:
+    """A static scene: a straight rod along x clamped at its start, a dead force at its end;
+    ``material`` holds the lines of its ``[[materials]]`` entry after the name."""
+    return f"""
+[simulation]
+type = "static"
+load_steps = {load_steps}
+[model]
+axial = "linear"
+[[materials]]
+name = "m"
+{material}
+[[rods]]
+name = "beam"
+material = "m"
+points = [[0.0, 0.0, 0.0], [{length}, 0.0, 0.0]]
+elements = {elements}
+[[supports]]
+node = "beam:start"
+fix = "clamp"
+[[loads]]
+node = "beam:end"
+force = {tip_force}
+[output]
+vtk = false
+"""
+
+
 def test_a_filament_under_piconewtons_bends_like_the_elastica(tmp_path: Path) -> None:
     """The elastica of ``P L^2 / EI = 2`` on a 1 mm filament (10 um, E = 10 kPa): its tip force
     is 1e-11 N, below Newton's absolute tolerance of 1e-10 N. The tolerance is relative to the
@@ -325,38 +354,47 @@ def test_a_filament_under_piconewtons_bends_like_the_elastica(tmp_path: Path) ->
     diameter, youngs, length = 1e-5, 1e4, 1e-3
     ei = youngs * np.pi * diameter**4 / 64.0
     force = 2.0 * ei / length**2
-    text = f"""
-[simulation]
-type = "static"
-load_steps = 5
-[model]
-axial = "linear"
-[[materials]]
-name = "gel"
-density = 1000.0
+    text = clamped_rod_toml(f"""density = 1000.0
 youngs_modulus = {youngs}
 poisson_ratio = 0.3
-diameter = {diameter}
-[[rods]]
-name = "beam"
-material = "gel"
-points = [[0.0, 0.0, 0.0], [{length}, 0.0, 0.0]]
-elements = 20
-[[supports]]
-node = "beam:start"
-fix = "clamp"
-[[loads]]
-node = "beam:end"
-force = [0.0, 0.0, {-force}]
-[output]
-vtk = false
-"""
+diameter = {diameter}""", length, [0.0, 0.0, -force], load_steps=5)
     assert force < 1e-10
     r = run(scene_from_toml(text), tmp_path, progress=False)
     assert r.status == "ok", r.message
     # the steel rod of test_static_solution_does_not_depend_on_load_steps: 0.4935 L
     assert -r.arrays["positions"][-1, -1, 2] / length == pytest.approx(0.4934574803967118,
                                                                        rel=2e-3)
+
+
+def test_a_perfect_column_above_its_buckling_load_buckles_to_the_elastica(tmp_path: Path) -> None:
+    """A straight clamped-free column under a dead end force of 1.5 times its buckling load, with
+    no imperfection: Newton's method converges to the straight equilibrium, a saddle of the
+    potential; the run must leave it for the buckled elastica (Timoshenko and Gere, Theory of
+    Elastic Stability, 2.7: ``P L^2 / EI = K(p)^2``, tip deflection ``2 p L / K(p)``, tip at
+    ``x = L (2 E(p) / K(p) - 1)``). EA L^2 / EI = 1e7, as a thread: the buckling mode's
+    eigenvalue is -1.2e-10 of the tangent's largest diagonal entry."""
+    length, ei = 1.0, 1.0
+    force = 1.5 * np.pi**2 * ei / (4.0 * length**2)
+    text = clamped_rod_toml(f"""density = 1000.0
+youngs_modulus = 1.0e9
+poisson_ratio = 0.3
+diameter = 0.01
+bending_stiffness = {ei}
+axial_stiffness = 1.0e7
+shear_stiffness = 1.0e7
+torsional_stiffness = 0.77""", length, [-force, 0.0, 0.0], load_steps=10)
+    r = run(scene_from_toml(text), tmp_path, progress=False)
+    assert r.status == "ok", r.message
+    assert not r.summary.get("warnings"), r.summary.get("warnings")
+    k = np.sqrt(force * length**2 / ei)
+    m = brentq(lambda m: ellipk(m) - k, 1e-12, 1.0 - 1e-12)     # m = p^2
+    deflection = 2.0 * np.sqrt(m) * length / k
+    x_tip = length * (2.0 * ellipe(m) / k - 1.0)
+    tip = r.arrays["positions"][-1, -1]
+    # 20 elements: the tip's x is 3.7e-3 of itself off the elastica, its deflection 8e-5
+    assert tip[0] == pytest.approx(x_tip, rel=1e-2)
+    assert np.hypot(tip[1], tip[2]) == pytest.approx(deflection, rel=1e-3)
+
 
 # --- 5. and 6. the expected values of the validation cases ---------------------------------------
 
