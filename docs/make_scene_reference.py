@@ -267,9 +267,8 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
         "Cosserat net (no single rotation)."),
     "loads.ramp": (
         "s", ">= 0. Dynamic runs: the load grows linearly from zero to full over this time; 0 "
-        "applies it in full from t = 0. Static runs: leave it at 0 (the load factor does the "
-        "ramping; a ramp longer than 1 s reduces the static load by the factor 1 / ramp). "
-        "Not together with `table`."),
+        "applies it in full from t = 0. Static runs: must stay 0 (`simulation.load_steps` raises "
+        "the loads). Not together with `table`."),
     "loads.table": (
         "s, -", "Dynamic runs: the load's factor over time as `[[t, factor], ...]` rows, times "
         ">= 0 in non-decreasing order, linear between rows, a repeated time a jump (the factor "

@@ -586,8 +586,8 @@ class Scene:
             timed = [(f"loads[{i}]", l) for i, l in enumerate(self.loads)] + \
                 [(f"line_loads[{i}]", l) for i, l in enumerate(self.line_loads)]
             for name, load in timed:
-                for key, unset in (("start", load.start == 0.0), ("stop", load.stop is None),
-                                   ("table", load.table is None)):
+                for key, unset in (("ramp", load.ramp == 0.0), ("start", load.start == 0.0),
+                                   ("stop", load.stop is None), ("table", load.table is None)):
                     require(unset, f"{name}.{key}", getattr(load, key),
                             "must be unset in a static run (it has no time; simulation.load_steps "
                             "raises the loads)")
