@@ -366,8 +366,7 @@ def run(scene: Scene, directory: str | Path | None = None, *, progress: bool | N
             wall = time.perf_counter() - start
             arrays = recorder.arrays(structure.n_nodes, len(structure.segments))
             arrays["segments"] = np.asarray(structure.segments)
-            summary = _summary(p, arrays, stats, status, message, wall,
-                               recorder.monitors.get("max_element_rotation", 0.0))
+            summary = _summary(p, arrays, stats, status, message, wall, recorder.monitors)
             summary["threads"] = n_threads
             if stopped_by is not None:
                 summary["signal"] = stopped_by
@@ -466,12 +465,35 @@ def _shared_supports(p: Prepared) -> list[str]:
     return out
 
 
-def _warnings(p: Prepared, stats: StepStats, frame_rotation: float) -> list[str]:
+def _loads_on_supports(p: Prepared) -> list[str]:
+    """A warning for every ``[[loads]]`` entry whose node its supports hold along every
+    direction the load acts in (a force's nonzero global components, a moment's three
+    rotations): the supports take the whole load and the structure does not feel it."""
+    held: dict[int, set[str]] = {}
+    for i, support in enumerate(p.scene.supports):
+        node = p.structure.node(support.node, f"supports[{i}].node")
+        held.setdefault(node, set()).update(support.fixed)
+    out = []
+    for i, load in enumerate(p.scene.loads):
+        node = p.structure.node(load.node, f"loads[{i}].node")
+        acting = {axis for axis, c in zip(("x", "y", "z"), load.force) if c != 0.0}
+        if any(c != 0.0 for c in load.moment):
+            acting |= {"r1", "r2", "r3"}
+        if acting and acting <= held.get(node, set()):
+            out.append(f"loads[{i}] acts on node {node} ('{load.node}'), which supports hold in "
+                       f"every direction the load acts in ({', '.join(sorted(acting))}): the "
+                       "supports take it and the structure does not feel it")
+    return out
+
+
+def _warnings(p: Prepared, stats: StepStats, monitors: dict[str, float]) -> list[str]:
     """What the user should know about a completed or failed run: a clamp on threads without
     rotations (it holds the node's position only, as a pin does: such threads pass no moment);
     a static equilibrium that is unstable (:func:`rodnet.integrate.static.unstable`);
     a rod element turned past the rotation stop (C52), where the stop's moment, not the
-    section, resisted its rotation; a node held by more than one support entry."""
+    section, resisted its rotation; a node held by more than one support entry; a load that
+    its node's supports take whole; a static run with rod elements turned inside out (C51).
+    ``monitors``: the frames' largest values of :data:`rodnet.io.recorder.MONITORS`."""
     out = []
     if not len(p.model.rotation_dofs()):
         label = MODELS[p.built.variant].label
@@ -480,13 +502,21 @@ def _warnings(p: Prepared, stats: StepStats, frame_rotation: float) -> list[str]
                 "carrying no bending moment); use model.type = 'cosserat' with bending for a "
                 "clamped rod" for i, support in enumerate(p.scene.supports)
                 if support.dofs is None and support.fix == "clamp"]
-    out += _shared_supports(p)
+    out += _shared_supports(p) + _loads_on_supports(p)
     if stats.extra.get("unstable"):
         out.append("the static equilibrium found is unstable: its tangent stiffness has a "
                    "negative eigenvalue (a link or column in compression that would buckle, a "
                    "chain folded on itself), so a nearby state of lower energy exists; more "
                    "simulation.load_steps, or a dynamic run with damping, can reach a stable one")
-    phi = max(stats.max_element_rotation or 0.0, frame_rotation)
+    inside_out = int(monitors.get("inside_out_elements", 0))
+    if inside_out and p.scene.simulation.type == "static":
+        out.append(f"{inside_out} rod element(s) turned inside out (the chord against the "
+                   "section's axis, FORMULATION.md C51): a compressive load folded them through "
+                   "themselves, held only by the regularising spring of 0.01 EA"
+                   + (" of the tension-only law, which carries no compression; a column or beam "
+                      "needs model.axial = 'linear'" if p.scene.model.axial == "tension-only"
+                      else "; the load exceeds what the rod can carry in compression"))
+    phi = max(stats.max_element_rotation or 0.0, monitors.get("max_element_rotation", 0.0))
     if phi <= ROTATION_STOP:
         return out
     return out + [f"a rod element turned by {phi:.4f} rad between its end triads, "
@@ -497,7 +527,8 @@ def _warnings(p: Prepared, stats: StepStats, frame_rotation: float) -> list[str]
 
 
 def _summary(p: Prepared, arrays: dict[str, NDArray[Any]], stats: StepStats, status: str,
-             message: str, wall: float, frame_rotation: float = 0.0) -> dict[str, Any]:
+             message: str, wall: float, monitors: dict[str, float] | None = None
+             ) -> dict[str, Any]:
     structure = p.structure
     metrics: dict[str, float] = {}
     if len(arrays["time"]):
@@ -526,6 +557,6 @@ def _summary(p: Prepared, arrays: dict[str, NDArray[Any]], stats: StepStats, sta
         "model": {"type": p.scene.model.type, "nodes": structure.n_nodes,
                   "elements": len(structure.segments), "dofs": p.system.n_dof},
         "nodes": structure.selectors, "metrics": metrics,
-        "warnings": _warnings(p, stats, frame_rotation),
+        "warnings": _warnings(p, stats, monitors or {}),
         "scene": scene_as_dict(p.scene, unused_keys(p.scene)),
     }

@@ -213,6 +213,46 @@ def test_two_supports_on_one_node_are_combined_and_said_so(tmp_path: Path) -> No
                                    "they fix are combined"]
 
 
+def test_a_load_its_supports_take_whole_is_said_so(tmp_path: Path) -> None:
+    """A force and a moment on the clamped root of the cantilever load nothing but the clamp:
+    the rod stays straight and the run warns, naming the load; a force on the tip does not."""
+    scene = tmp_path / "root.toml"
+    scene.write_text(ROLLUP.read_text().replace('node = "beam:end"', 'node = "beam:start"', 1))
+    out = tmp_path / "root"
+    assert main(["run", str(scene), "-o", str(out), "--quiet", "--set",
+                 "loads[0].force=[0, 0, -1]", "--set", "loads[0].moment=[0, 0, 5]"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    positions = np.load(out / "result.npz")["positions"]
+    assert np.abs(positions[-1] - positions[0]).max() == 0.0
+    assert len(summary["warnings"]) == 1
+    assert summary["warnings"][0].startswith("loads[0] acts on node 0 ('beam:start')")
+    out = tmp_path / "tip"
+    assert main(["run", str(ROLLUP), "-o", str(out), "--quiet", "--set",
+                 "loads[0].moment=[0, 0, 0]", "--set", "loads[0].force=[0, 0, -1]"]) == 0
+    assert json.loads((out / "summary.json").read_text())["warnings"] == []
+
+
+@pytest.mark.parametrize("axial", ["tension-only", "linear"])
+def test_a_tension_only_column_folded_inside_out_is_said_so(tmp_path: Path, axial: str) -> None:
+    """A clamped rod pushed along its axis by 10 N (a tenth of its Euler load): with the linear
+    law it shortens by P L / EA and no warning; with the tension-only law nothing resists until
+    every element has folded through itself, where only the regularising spring of C51 (0.01
+    EA) holds the load, and the run says so."""
+    out = tmp_path / axial
+    assert main(["run", str(ROLLUP), "-o", str(out), "--quiet", "--set", f"model.axial={axial}",
+                 "--set", "loads[0].moment=[0, 0, 0]", "--set", "loads[0].force=[-10, 0, 0]"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    tip = np.load(out / "result.npz")["positions"][-1, summary["nodes"]["beam:end"]]
+    if axial == "linear":
+        assert tip[0] == pytest.approx(1.0 - 10.0 / (2.0e11 * np.pi * 0.01**2 / 4), rel=1e-12)
+        assert summary["warnings"] == []
+    else:
+        assert tip[0] < 0.0                       # through the clamp
+        assert len(summary["warnings"]) == 1
+        assert summary["warnings"][0].startswith("20 rod element(s) turned inside out")
+        assert "model.axial = 'linear'" in summary["warnings"][0]
+
+
 @pytest.mark.parametrize("model", ["lumped", "cosserat"])
 def test_a_clamp_on_threads_without_rotations_is_a_pin_and_says_so(tmp_path: Path, capsys,
                                                                    model: str) -> None:

@@ -21,7 +21,7 @@ from rodnet.state import State
 FrameFunction = Callable[[float, State], dict[str, Any]]
 FrameCheck = Callable[[float, dict[str, Any]], None]
 
-MONITORS = ("max_element_rotation",)
+MONITORS = ("max_element_rotation", "inside_out_elements")
 """Frame scalars the recorder tracks the largest of, without saving them."""
 
 SHAPES = {"positions": ("N", 3), "velocities": ("N", 3), "rotations": ("N", 4), "tension": ("E",),

@@ -334,12 +334,14 @@ class CosseratModel:
     def frame_arrays(self, q: Configuration, v: FloatArray) -> dict[str, FloatArray]:
         """What a saved frame holds: positions, velocities, rotations, and per element the axial
         force ``tension`` [N], ``curvature`` |(K_1, K_2)| [1/m] and ``twist`` K_0 [1/m]; and,
-        not saved, the largest element rotation ``max_element_rotation`` [rad]."""
+        not saved, the largest element rotation ``max_element_rotation`` [rad] and the number of
+        elements turned inside out, ``inside_out_elements`` (axial strain below -1, C51)."""
         eps, stress = self.section_state(q, v)
         return {"positions": q.x.copy(), "velocities": v[:3 * self.n_nodes].reshape(-1, 3).copy(),
                 "rotations": q.quat[self._rotation_of_node], "tension": self._tension(stress[:, 0]),
                 "curvature": np.hypot(eps[:, 4], eps[:, 5]), "twist": eps[:, 3],
-                "max_element_rotation": float(self.element_rotation(q).max(initial=0.0))}
+                "max_element_rotation": float(self.element_rotation(q).max(initial=0.0)),
+                "inside_out_elements": float(np.count_nonzero(eps[:, 0] < -1.0))}
 
     @property
     def _rotation_of_node(self) -> NDArray[np.int64]:
