@@ -165,8 +165,10 @@ def _convert(hint: Any, value: Any, key: str) -> Any:
         _expect(isinstance(value, str), key, value, "must be a string")
         return value
     if origin is tuple:
-        _expect(isinstance(value, list), key, value, "must be an array")
-        if len(args) == 2 and args[1] is Ellipsis:
+        fixed = not (len(args) == 2 and args[1] is Ellipsis)
+        _expect(isinstance(value, list), key, value,
+                f"must be an array of {len(args)} numbers" if fixed else "must be an array")
+        if not fixed:
             return tuple(_convert(args[0], v, f"{key}[{i}]") for i, v in enumerate(value))
         _expect(len(value) == len(args), key, value, f"must be an array of {len(args)} numbers")
         return tuple(_convert(a, v, f"{key}[{i}]") for i, (a, v) in enumerate(zip(args, value)))

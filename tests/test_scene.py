@@ -51,6 +51,7 @@ def test_bad_values_are_named(override: str, key: str, allowed: str) -> None:
     ("net.packing=true", "net.packing = true: must be a number"),
     ("net.direction=[0, nan, 1]", "net.direction[1] = nan: must be a finite number"),
     ("materials[3].density=1.0", "materials[3] = 3: index must be 0..0"),
+    ("simulation.gravity=-9.81", "simulation.gravity = -9.81: must be an array of 3 numbers"),
 ])
 def test_bad_values_are_shown_as_a_scene_writes_them(override: str, message: str) -> None:
     """The value in a message is TOML (true, not Python's True), and an array's bad component

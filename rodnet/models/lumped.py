@@ -328,7 +328,8 @@ def build_lumped(scene: Scene, structure: Structure,
     for i, load in enumerate(scene.loads):
         if any(load.moment):
             raise SceneError(f"loads[{i}].moment", load.moment,
-                             "a lumped model has no rotations; moments need model.type = 'cosserat'")
+                             "the lumped model and cable threads have no rotations; moments "
+                             "need model.type = 'cosserat' with model.bending or model.torsion on")
     loads = dead_loads(scene, structure, mass)
     model = LumpedModel(
         structure=structure, mass=mass, inv_mass=inv_mass,
