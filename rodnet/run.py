@@ -37,7 +37,7 @@ from rodnet.integrate.frames import StepStats, frame_times
 from rodnet.integrate.implicit import NEWTON_TARGET, SCHEMES, integrate_implicit
 from rodnet.integrate.newton import NewtonOptions
 from rodnet.integrate.rk45 import integrate_rk45
-from rodnet.integrate.static import solve_static
+from rodnet.integrate.static import STATIC_TIME, solve_static
 from rodnet.io.recorder import FrameCheck, Recorder, energy_guard
 from rodnet.io.restart import restarted, saved_frame
 from rodnet.io.results import output_directory, scene_as_dict, write_npz, write_summary
@@ -343,7 +343,7 @@ def run(scene: Scene, directory: str | Path | None = None, *, progress: bool | N
         if scene.output.vtk else None
     dynamic = scene.simulation.type == "dynamic"
     checks = _energy_checks(p) + [p.system.check_frame]
-    recorder = Recorder(p.system.frame, vtk, checks, skip_first=not dynamic,
+    recorder = Recorder(_frame_function(p), vtk, checks, skip_first=not dynamic,
                         advice=_stability_advice(p), only={float(t) for t in p.frames})
     bar = Progress(scene.simulation.duration, enabled=progress)
     status, message, stats = "ok", "", StepStats()
@@ -366,6 +366,7 @@ def run(scene: Scene, directory: str | Path | None = None, *, progress: bool | N
             wall = time.perf_counter() - start
             arrays = recorder.arrays(structure.n_nodes, len(structure.segments))
             arrays["segments"] = np.asarray(structure.segments)
+            arrays["support_nodes"] = supported_nodes(p)
             summary = _summary(p, arrays, stats, status, message, wall, recorder.monitors)
             summary["threads"] = n_threads
             if stopped_by is not None:
@@ -447,6 +448,30 @@ def _stability_advice(p: Prepared) -> str:
         return ("reduce simulation.explicit_safety; if integrator.max_element_rotation in "
                 "summary.json is near 2 pi, use more elements_per_thread")
     return "reduce simulation.explicit_safety (or simulation.dt with adaptive = false)"
+
+
+def supported_nodes(p: Prepared) -> NDArray[np.int64]:
+    """(S,) the nodes that ``[[supports]]`` hold, each once, in the order of the entries."""
+    nodes = [p.structure.node(s.node, f"supports[{i}].node")
+             for i, s in enumerate(p.scene.supports)]
+    return np.array(list(dict.fromkeys(nodes)), dtype=np.int64)
+
+
+def _frame_function(p: Prepared) -> Callable[[float, State], dict[str, Any]]:
+    """The system's frame with ``support_reactions`` (S, 3) [N], the supports' forces on the
+    nodes of :func:`supported_nodes`. A static frame's time is its load factor."""
+    nodes = supported_nodes(p)
+    static = p.scene.simulation.type == "static"
+
+    def frame_of(t: float, state: State) -> dict[str, Any]:
+        frame = p.system.frame(t, state)
+        if len(nodes):
+            v = np.zeros_like(state.v) if static else state.v
+            frame["support_reactions"] = p.system.support_reactions(
+                state.q, v, STATIC_TIME if static else t, t if static else 1.0, nodes)
+        return frame
+
+    return frame_of
 
 
 def _shared_supports(p: Prepared) -> list[str]:

@@ -479,6 +479,16 @@ class ThreadSystem:
                                                    state.friction_work))
         return frame
 
+    def support_reactions(self, q: Configuration, v: FloatArray, t: float, load_factor: float,
+                          nodes: NDArray[np.int64]) -> FloatArray:
+        """(S, 3) force [N] that the supports exert on each of the position ``nodes`` (S,):
+        ``g`` (internal, damping and contact forces less the loads) at their fixed
+        translations, where the node does not accelerate; zero along a free direction."""
+        dofs = 3 * np.asarray(nodes)[:, None] + np.arange(3)
+        reaction = self.generalized_force(q, v, t, load_factor)[dofs]
+        reaction[self.free[dofs]] = 0.0
+        return reaction
+
     def energy(self, t: float, state: State) -> dict[str, float]:
         """Kinetic, elastic (and, where the model reports it, external-load potential) energy
         [J]; with bodies also theirs and ``contact``, the energy in the penalty springs."""

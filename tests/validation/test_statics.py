@@ -696,7 +696,8 @@ def test_a_slack_cable_between_two_pins_hangs_as_the_elastic_catenary(model: str
     public scene format and the command line: the midspan sag and the end tension agree with the
     elastic catenary to 0.1 %. The end tension of the discrete cable is the support reaction,
     ``sqrt(H^2 + (W / 2)^2)`` with ``H`` the horizontal component of the segment forces (the same
-    in every segment)."""
+    in every segment); result.npz's ``support_reactions`` give it directly (the end segment's
+    own force is the tension half a segment in, 0.6 % lower here)."""
     scene = tmp_path / "catenary.toml"
     scene.write_text(CATENARY.format(model=model))
     assert main(["run", str(scene), "-o", str(tmp_path / "out"), "--quiet"]) == 0
@@ -714,6 +715,10 @@ def test_a_slack_cable_between_two_pins_hangs_as_the_elastic_catenary(model: str
     assert np.ptp(H) < 1e-6 * H.mean()
     assert discrete_sag == pytest.approx(sag, rel=1e-3)
     assert discrete_tension == pytest.approx(end_tension, rel=1e-3)
+    reactions = arrays["support_reactions"][-1]          # (2, 3): the two pins
+    assert list(arrays["support_nodes"]) == [0, len(x) - 1]
+    np.testing.assert_allclose(np.linalg.norm(reactions, axis=1), discrete_tension, rtol=1e-9)
+    assert reactions[:, 2].sum() == pytest.approx(1000.0 * area * 9.81 * 12.0, rel=1e-9)
 
 
 # --- unstable equilibria --------------------------------------------------------------------------
