@@ -299,6 +299,26 @@ def test_support_reactions_balance_the_momentum_of_a_swinging_rod(tmp_path: Path
     assert np.abs(rate - forces).max() < 1e-3 * np.abs(forces).max()
 
 
+def test_an_explicit_fixed_step_with_no_room_for_the_scaled_rotary_inertia_is_refused() -> None:
+    """Fixed explicit steps of a Cosserat rod between ``ROTATION_SAFETY`` of the translations'
+    limit and the limit itself were accepted with the rotary inertia raised 1e16 times (C49),
+    which held the sections still: a cantilever given its second mode's velocities moved 2.7e-5
+    m instead of 1e-3 m. Such a step is refused naming simulation.dt and the largest step that
+    works; just below it the inertia is raised by tens, not by orders of magnitude."""
+    import re
+
+    from rodnet.errors import SceneError
+    explicit = ["simulation.integrator=explicit", "simulation.adaptive=false"]
+    with pytest.raises(SceneError) as info:
+        prepare(scene_from_toml(PINNED_ROD, explicit + ["simulation.dt=1.0"]))
+    assert info.value.key == "simulation.dt" and "scaled rotary inertia" in str(info.value)
+    largest = float(re.search(r"use dt <= ([0-9.e+-]+) s", str(info.value)).group(1))
+    with pytest.raises(SceneError, match="scaled rotary inertia"):
+        prepare(scene_from_toml(PINNED_ROD, explicit + [f"simulation.dt={1.02 * largest}"]))
+    built = prepare(scene_from_toml(PINNED_ROD, explicit + [f"simulation.dt={0.98 * largest}"])).built
+    assert 1.0 < built.rotary_inertia_scale < 1e3
+
+
 @pytest.mark.parametrize("model", ["lumped", "cosserat"])
 def test_a_clamp_on_threads_without_rotations_is_a_pin_and_says_so(tmp_path: Path, capsys,
                                                                    model: str) -> None:

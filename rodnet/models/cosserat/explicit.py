@@ -251,7 +251,19 @@ def explicit_plan(model: CosseratModel, dt: float, adaptive: bool, safety: float
         # the step the translations would allow with the rotations held (C48) sets how fast the
         # modes with rotations may ring: the rotary inertia is raised to that (C49)
         lam_t = bound.largest(K, bound.inverse_sqrt_mass(inertia), TRANSLATION)
-        h_t = safety * float(damped_limit(np.sqrt(lam_t), bound.tau).min()) if adaptive else dt
+        limit_t = float(damped_limit(np.sqrt(lam_t), bound.tau).min())
+        h_t = safety * limit_t if adaptive else dt
+        if not adaptive and dt > ROTATION_SAFETY * limit_t:
+            # no rotary inertia brings the modes with rotations to ROTATION_SAFETY of their
+            # limit: the translations alone ring too fast for this step (the raised inertia
+            # would grow without bound and hold the sections still)
+            raise SceneError("simulation.dt", dt, f"leaves no room for the scaled rotary inertia "
+                             f"(C49): with the rotations held, the translations' stability limit "
+                             f"is {limit_t:.3g} s, and the rotations may run at "
+                             f"{ROTATION_SAFETY:g} of theirs; use dt <= "
+                             f"{ROTATION_SAFETY * limit_t:.3g} s (about half of it for accurate "
+                             "snap loads), adaptive = true, or "
+                             "simulation.rotary_inertia_scaling = false with a smaller dt")
         target = frequency_for_step(h_t, bound.tau, ROTATION_SAFETY) ** 2
         inertia = _raised_inertia(model, bound, K, target)
     lam = bound.largest(K, bound.inverse_sqrt_mass(inertia))
