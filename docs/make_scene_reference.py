@@ -242,7 +242,13 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
     "rods.angular_velocity": (
         "rad/s", "Initial rigid rotation of the whole rod about `rotation_center`, added to "
         "`velocity`: every node moves at `omega x (x - center)` and, with Cosserat rods, every "
-        "section turns at `omega` too, so the rod starts without strain rate."),
+        "section turns at `omega` too, so the rod starts without strain rate. Explicit runs "
+        "with scaled rotary inertia (`simulation.rotary_inertia_scaling`) start each section "
+        "with the angular momentum of its real inertia instead, `omega` times its `J / "
+        "J_scaled` (down to 1 / `integrator.rotary_inertia_scale`; C49: a thread end spun at "
+        "hundreds of rad/s must "
+        "not become a flywheel), so they start with a small strain rate; for a rod turning "
+        "rigidly, `rotary_inertia_scaling = false` or an implicit integrator keeps `omega`."),
     "rods.rotation_center": (
         "m", "The point the `angular_velocity` turns the rod about; not set: the mean of the "
         "rod's nodes."),
