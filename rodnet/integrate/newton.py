@@ -251,6 +251,10 @@ class NewtonProblem:
     on_start : callable, optional
         Told the start instead of ``on_accept`` (it was extrapolated, not reached by a
         correction).
+    residual_weights : (n,) float, optional
+        Weights of the residual's entries in the convergence test ``|w r|_inf <= tol`` (and
+        the residual norm reported): equations of a smaller force scale than the tolerance's
+        (a free body beside stiff threads) are solved to their own.
     """
 
     evaluate: Evaluate
@@ -265,6 +269,7 @@ class NewtonProblem:
     restraint: Callable[[FloatArray], FloatArray | None] | None = None
     rebases: bool = False
     on_start: Callable[[FloatArray], None] | None = None
+    residual_weights: FloatArray | None = None
 
 
 def tolerance(options: NewtonOptions, scale: float) -> float:
@@ -449,7 +454,7 @@ class _Point:
 def _point(p: NewtonProblem, u: FloatArray, near: _Point | None) -> _Point:
     """The iterate at ``u`` with its residual and merit."""
     r, _ = p.evaluate(u, None)
-    norm = _max_abs(r)
+    norm = _max_abs(r if p.residual_weights is None else p.residual_weights * r)
     merit = p.merit
     if not math.isfinite(norm):
         return _Point(u, r, norm, lambda: math.inf, merit is not None)

@@ -118,6 +118,11 @@ class System(Protocol):
         """Indices of the rotational DOFs (their Newton increments are capped)."""
         ...
 
+    def body_dof_groups(self) -> NDArray[np.int64]:
+        """(G, 3) DOF indices of the free bodies' unknowns, one row per body's translation and
+        per body's rotation; (0, 3) without free bodies."""
+        ...
+
     def step_travel(self, q_old: Configuration, q_new: Configuration) -> float:
         """How far points near a rigid body moved over a step, as a multiple of their travel
         limit (above 1 the step is retried shorter); 0 without bodies."""

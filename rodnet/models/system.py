@@ -426,6 +426,11 @@ class ThreadSystem:
             return self.model.rotation_dofs()
         return np.concatenate([self.model.rotation_dofs(), self._body_dofs[1].ravel()])
 
+    def body_dof_groups(self) -> NDArray[np.int64]:
+        if not self.n_moving:
+            return np.zeros((0, 3), np.int64)
+        return np.vstack(self._body_dofs)
+
     def step_travel(self, q_old: Configuration, q_new: Configuration) -> float:
         """Travel of thread points near a body relative to it (E3)."""
         if self.contact is None:
