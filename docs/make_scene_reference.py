@@ -390,7 +390,7 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
     "initial.velocities": (
         "-, m/s", "`[[node, vx, vy, vz], ...]`: initial velocities of the named nodes (node "
         "selectors as in `[[supports]]`), replacing what the net, the rod or `[[masses]]` set; "
-        "rods and nets."),
+        "rods and nets. Not with `from` (the saved frame gives every velocity)."),
     # [output]
     "output.directory": (
         "", "Output directory, relative to the working directory; `-o DIR` on the command line "

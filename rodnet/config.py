@@ -513,6 +513,9 @@ class InitialSpec:
             require(self.frame == -1 and self.time is None, "frame" if self.time is None
                     else "time", self.time if self.time is not None else self.frame,
                     "needs initial.from (the folder of the run to start from)")
+        else:
+            require(not self.velocities, "velocities", [list(v) for v in self.velocities],
+                    "must be unset with initial.from (the saved frame gives every velocity)")
         if self.time is not None:
             _non_negative(self, "time")
             require(self.frame == -1, "frame", self.frame, "must be unset when time is given")

@@ -102,7 +102,10 @@ def test_incompatible_or_missing_runs_are_refused_by_key(tmp_path: Path) -> None
               "initial.from"),
              (_thread(duration=0.04, extra=f'[initial]\nfrom = "{tmp_path / "rod"}"'),
               "simulation.duration"),
-             (_thread(extra="[initial]\nframe = 2"), "initial.frame")]
+             (_thread(extra="[initial]\nframe = 2"), "initial.frame"),
+             # given velocities were silently replaced by the saved frame's
+             (_thread(extra=f'[initial]\nfrom = "{tmp_path / "rod"}"\n'
+                      'velocities = [["thread:end", 0.0, 0.0, 1.0]]'), "initial.velocities")]
     for text, key in cases:
         with pytest.raises(SceneError) as err:
             run(scene_from_toml(text), tmp_path / "out", progress=False)
