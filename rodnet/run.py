@@ -517,7 +517,8 @@ def _warnings(p: Prepared, stats: StepStats, monitors: dict[str, float]) -> list
     a static equilibrium that is unstable (:func:`rodnet.integrate.static.unstable`);
     a rod element turned past the rotation stop (C52), where the stop's moment, not the
     section, resisted its rotation; a node held by more than one support entry; a load that
-    its node's supports take whole; a static run with rod elements turned inside out (C51).
+    its node's supports take whole; a static run with rod elements turned inside out (C51);
+    a fixed step longer than the frame interval.
     ``monitors``: the frames' largest values of :data:`rodnet.io.recorder.MONITORS`."""
     out = []
     if not len(p.model.rotation_dofs()):
@@ -528,6 +529,11 @@ def _warnings(p: Prepared, stats: StepStats, monitors: dict[str, float]) -> list
                 "clamped rod" for i, support in enumerate(p.scene.supports)
                 if support.dofs is None and support.fix == "clamp"]
     out += _shared_supports(p) + _loads_on_supports(p)
+    sim, interval = p.scene.simulation, p.scene.output.frame_interval
+    if sim.type == "dynamic" and not sim.adaptive and sim.dt > interval * (1.0 + 1e-9):
+        out.append(f"simulation.dt = {sim.dt:g} s is longer than output.frame_interval = "
+                   f"{interval:g} s: the steps were cut to land on every frame, so the run "
+                   f"stepped at {interval:g} s")
     if stats.extra.get("unstable"):
         out.append("the static equilibrium found is unstable: its tangent stiffness has a "
                    "negative eigenvalue (a link or column in compression that would buckle, a "

@@ -213,6 +213,26 @@ def test_two_supports_on_one_node_are_combined_and_said_so(tmp_path: Path) -> No
                                    "they fix are combined"]
 
 
+def test_a_fixed_step_longer_than_the_frame_interval_is_said_so(tmp_path: Path) -> None:
+    """A fixed implicit step of 0.05 s with frames every 0.01 s steps at 0.01 s (the steps land
+    on the frames): the same frames as dt = 0.01 s, and a warning naming both keys."""
+    frames = {}
+    for dt in (0.05, 0.01):
+        r = run(scene_from_toml(PINNED_ROD, ["simulation.integrator=backward-euler",
+                                             f"simulation.dt={dt}", "simulation.duration=0.05",
+                                             "output.frame_interval=0.01"]),
+                tmp_path / str(dt), progress=False)
+        frames[dt] = r
+    assert r.summary["warnings"] == []
+    long = frames[0.05]
+    assert long.summary["steps"] == 5
+    np.testing.assert_allclose(long.arrays["positions"], frames[0.01].arrays["positions"],
+                               rtol=0, atol=1e-12)
+    assert len(long.summary["warnings"]) == 1
+    assert long.summary["warnings"][0].startswith("simulation.dt = 0.05 s is longer than "
+                                                  "output.frame_interval = 0.01 s")
+
+
 def test_a_load_its_supports_take_whole_is_said_so(tmp_path: Path) -> None:
     """A force and a moment on the clamped root of the cantilever load nothing but the clamp:
     the rod stays straight and the run warns, naming the load; a force on the tip does not."""
