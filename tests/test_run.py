@@ -233,6 +233,26 @@ def test_a_fixed_step_longer_than_the_frame_interval_is_said_so(tmp_path: Path) 
                                                   "output.frame_interval = 0.01 s")
 
 
+def test_an_element_held_at_both_ends_and_a_structure_held_everywhere(tmp_path: Path) -> None:
+    """Clamps on the first two nodes of a rod leave its first element no bound (C48): the
+    explicit plan's bent-element factors were NaN and the run 'diverged at t = nan'; now it
+    runs as the cantilever of the rest. Clamps on every node leave nothing to move: refused
+    naming supports, before anything is written."""
+    two = PINNED_ROD.replace('fix = "pin"', 'fix = "clamp"') + \
+        '[[supports]]\nnode = "r:1"\nfix = "clamp"\n'
+    r = run(scene_from_toml(two, ["simulation.integrator=explicit", "simulation.adaptive=true",
+                                  "simulation.duration=0.02"]), tmp_path / "two", progress=False)
+    assert r.status == "ok", r.message
+    z = r.arrays["positions"][:, -1, 2]
+    assert np.isfinite(z).all() and z[-1] < -1e-4         # the free part falls
+    every = two.replace("elements = 10", "elements = 1").replace('node = "r:1"', 'node = "r:end"')
+    from rodnet.errors import SceneError
+    with pytest.raises(SceneError) as info:
+        run(scene_from_toml(every), tmp_path / "every", progress=False)
+    assert info.value.key == "supports" and "nothing can move" in str(info.value)
+    assert not (tmp_path / "every").exists()
+
+
 def test_a_load_its_supports_take_whole_is_said_so(tmp_path: Path) -> None:
     """A force and a moment on the clamped root of the cantilever load nothing but the clamp:
     the rod stays straight and the run warns, naming the load; a force on the tip does not."""

@@ -275,8 +275,10 @@ def explicit_plan(model: CosseratModel, dt: float, adaptive: bool, safety: float
                          "snap loads) or adaptive = true")
     # bent elements stiffen: the step shrinks with the largest rotation in the structure (C50)
     inv_sqrt = bound.inverse_sqrt_mass(inertia)
+    moving = lam > 0.0       # an element whose ends are both held has no bound to scale
     ratio = np.array([float(np.max(bound.largest(K if a == 0.0 else _stiffness_kinds(model, a),
-                                                 inv_sqrt) / lam)) for a in ANGLES])
+                                                 inv_sqrt)[moving] / lam[moving], initial=1.0))
+                      for a in ANGLES])
     factor = 1.0 / np.sqrt(np.maximum(1.0, np.maximum.accumulate(ratio)))
     scale = float((inertia / model.rotary_inertia).max()) if model.n_rot else 1.0
     return ExplicitRodPlan(h, stable, inertia, scale, (ANGLES.copy(), factor))
