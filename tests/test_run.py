@@ -355,7 +355,8 @@ def test_an_explicit_fixed_step_with_no_room_for_the_scaled_rotary_inertia_is_re
     largest = float(re.search(r"use dt <= ([0-9.e+-]+) s", str(info.value)).group(1))
     with pytest.raises(SceneError, match="scaled rotary inertia"):
         prepare(scene_from_toml(PINNED_ROD, explicit + [f"simulation.dt={1.02 * largest}"]))
-    built = prepare(scene_from_toml(PINNED_ROD, explicit + [f"simulation.dt={0.98 * largest}"])).built
+    below = explicit + [f"simulation.dt={0.98 * largest}"]
+    built = prepare(scene_from_toml(PINNED_ROD, below)).built
     assert 1.0 < built.rotary_inertia_scale < 1e3
 
 

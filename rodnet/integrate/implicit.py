@@ -326,10 +326,10 @@ class Scheme:
         """Weights of the residual in Newton's convergence test (free DOFs): 1 on the threads,
         ``scale / body_scale`` (at least 1) on each free body's translations and on its
         rotations, ``body_scale`` being their own force or moment ``|M vd|`` or, at least,
-        :data:`BODY_MOMENTUM_FLOOR` of their momentum per step ``|M v| / h``. Without them a body's equations would be solved
-        to the threads' tolerance: beside a clamped steel post, a tumbling 1 kg box took
-        moment residuals of 1.6e-3 N m each step (1 % of its gyroscopic moment) and flipped
-        1.2 s late. None without free bodies."""
+        :data:`BODY_MOMENTUM_FLOOR` of their momentum per step ``|M v| / h``. Without them a
+        body's equations would be solved to the threads' tolerance: beside a clamped steel
+        post, a tumbling 1 kg box took moment residuals of 1.6e-3 N m each step (1 % of its
+        gyroscopic moment) and flipped 1.2 s late. None without free bodies."""
         s = self.system
         groups = s.body_dof_groups()
         if not len(groups):
