@@ -238,24 +238,30 @@ the backward-Euler step of the pinned Cosserat net at t = 0.728 s, h = 2 ms, con
 linearly and takes 380 iterations (docs/rod_model.md, Limits)."""
 
 
-def _newton(p: Prepared) -> NewtonOptions:
-    """Newton's options for the prepared run ``p``.
+def _rotations_creep(p: Prepared) -> bool:
+    """Whether the run's Newton solves may creep on rotation nodes of almost no stiffness
+    (threads with rotation unknowns, in adaptive dynamic runs; a free body's own rotation does
+    not count). There a shorter step converges in fewer iterations, so a solve of at least
+    twice ``NEWTON_TARGET`` iterations whose residual has not halved in the last
+    ``NEWTON_TARGET`` is given up (the step is taken again at half the size), and a step's
+    iterations shrink the next one (:func:`rodnet.integrate.implicit._resize_factor`); see
+    docs/rod_model.md, Limits. Elsewhere neither: on the capture of docs/capture.md (lumped
+    threads, contact, free target) the first made 12,746 steps and 109,412 iterations of the
+    2,227 and 29,004 without it, the second 1,821 steps and 12,180 iterations in the first
+    1.5 s against 1,047 and 7,269, its contact steps being no easier when shorter."""
+    sim = p.scene.simulation
+    return sim.type == "dynamic" and sim.adaptive and len(p.system.model.rotation_dofs()) > 0
 
-    Adaptive dynamic runs of threads with rotation unknowns (rod sections; a free body's own
-    rotation does not count) give up a solve of at least twice
-    ``NEWTON_TARGET`` iterations whose residual has not halved in the last ``NEWTON_TARGET``
-    (the step is taken again at half the size): there
-    a creeping solve comes from rotation nodes of almost no stiffness and a shorter step
-    converges (docs/rod_model.md, Limits). Without rotations the limit is not set: the
-    capture of docs/capture.md (lumped threads, contact) took 109,412 iterations in 12,746
-    steps with it against 29,004 in 2,227 without, its contact steps being no easier when
-    shorter."""
+
+def _newton(p: Prepared) -> NewtonOptions:
+    """Newton's options for the prepared run ``p``: a fixed step's iteration limit, and the
+    progress limit where rotations creep (:func:`_rotations_creep`)."""
     sim = p.scene.simulation
     options = NewtonOptions(rtol=min(sim.rtol, 1e-6) * 1e-2,
                             reuse_factorization=sim.reuse_factorization)
     if sim.type == "dynamic" and not sim.adaptive:
         return dataclasses.replace(options, max_iterations=FIXED_STEP_ITERATIONS)
-    if sim.type == "dynamic" and len(p.system.model.rotation_dofs()):
+    if _rotations_creep(p):
         return dataclasses.replace(options, progress_iterations=NEWTON_TARGET)
     return options
 
@@ -286,7 +292,8 @@ def _implicit(p: Prepared, recorder: Recorder, bar: Progress, stats: StepStats) 
     scheme = cls(p.system, _newton(p), **extra)
     return integrate_implicit(scheme, p.state, p.times, sim.dt, sim.adaptive, recorder, bar,
                               dt_max=sim.dt_max, error_tolerance=error_tolerance(p), stats=stats,
-                              restarts=frozenset(float(t) for t in p.breaks))
+                              restarts=frozenset(float(t) for t in p.breaks),
+                              newton_shrinks=_rotations_creep(p))
 
 
 INTEGRATORS: dict[str, Integrate] = {

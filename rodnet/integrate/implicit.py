@@ -710,7 +710,8 @@ def integrate_implicit(scheme: Scheme, state: State, times: NDArray[np.float64],
                        on_progress: ProgressSink | None = None, dt_max: float | None = None,
                        min_dt: float = 1e-12, error_tolerance: float | None = None,
                        stats: StepStats | None = None,
-                       restarts: frozenset[float] = frozenset()) -> StepStats:
+                       restarts: frozenset[float] = frozenset(),
+                       newton_shrinks: bool = True) -> StepStats:
     """March ``state`` from ``times[0]`` to ``times[-1]`` landing on every frame time.
 
     Adaptive: a step whose Newton solve fails is retried with half the step, and the steps after
@@ -718,7 +719,8 @@ def integrate_implicit(scheme: Scheme, state: State, times: NDArray[np.float64],
     ``error_tolerance`` [m] and a scheme that estimates its local error
     (:meth:`Scheme.local_error`), a step whose estimate exceeds the tolerance is rejected and
     every step is resized by ``0.9 (tolerance / error)^(1/3)`` (within 0.2 ... 2) and by at most
-    ``(6 / iterations)^(1/2)`` for the Newton iterations it took (:func:`_resize_factor`).
+    ``(6 / iterations)^(1/2)`` for the Newton iterations it took, or with ``newton_shrinks``
+    false not grown after more than 6 (:func:`_resize_factor`).
     Otherwise, after two steps in a row that each converged within four iterations the step
     grows by a quarter. Either way the step stays
     below ``dt_max`` (default: the interval between saved frames). A step that moves a point
@@ -773,7 +775,7 @@ def integrate_implicit(scheme: Scheme, state: State, times: NDArray[np.float64],
             error = scheme.local_error(motion, new, h_try) if controlled else float("nan")
             if controlled and np.isfinite(error):
                 factor = _resize_factor(error, error_tolerance,  # type: ignore[arg-type]
-                                        result.iterations, scheme.order)
+                                        result.iterations, scheme.order, newton_shrinks)
                 if error > error_tolerance:  # type: ignore[operator]
                     stats.rejected_steps += 1
                     if h_try * factor < min_dt:
@@ -812,12 +814,19 @@ NEWTON_TARGET = 6
 """Newton iterations per step that the step control aims at."""
 
 
-def _resize_factor(error: float, tolerance: float, iterations: int, order: int) -> float:
+def _resize_factor(error: float, tolerance: float, iterations: int, order: int,
+                   newton_shrinks: bool = True) -> float:
     """Step-size factor from the local error estimate of a scheme of order ``order`` and the
     Newton iterations of the step: the error scales as h^(order + 1), so
-    ``0.9 (tolerance / error)^(1 / (order + 1))`` within 0.2 ... 2, and at most
-    ``(NEWTON_TARGET / iterations)^(1/2)``: a step that needed many iterations makes the next
-    one shorter, one that needed few lets it grow by less than the error alone would."""
+    ``0.9 (tolerance / error)^(1 / (order + 1))`` within 0.2 ... 2.
+
+    ``newton_shrinks``: at most ``(NEWTON_TARGET / iterations)^(1/2)``, so a step that needed
+    many iterations makes the next one shorter and one that needed few lets it grow by less
+    than the error alone would (for solves that a shorter step makes easier: nearly free
+    rotation nodes). Otherwise at most 1 after more than ``NEWTON_TARGET`` iterations (contact
+    and slack-taut steps are not easier when shorter)."""
     factor = 2.0 if error <= 0.0 else 0.9 * (tolerance / error) ** (1.0 / (order + 1))
     factor = min(2.0, max(0.2, factor))
+    if not newton_shrinks:
+        return min(factor, 1.0) if iterations > NEWTON_TARGET else factor
     return min(factor, (NEWTON_TARGET / max(iterations, 1)) ** 0.5)

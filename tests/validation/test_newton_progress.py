@@ -62,3 +62,25 @@ def test_only_adaptive_dynamic_runs_of_rods_give_up_on_progress() -> None:
     assert options("model.type=cosserat", "simulation.adaptive=false",
                    "simulation.dt=1e-3").progress_iterations is None
     assert options("model.type=lumped", "simulation.integrator=bdf2").progress_iterations is None
+
+
+def test_step_control_shrinks_on_iterations_only_where_rotations_creep() -> None:
+    """A step that took 24 Newton iterations halves the next where a shorter step converges
+    faster (threads with rotation unknowns); elsewhere it only stops the next from growing,
+    and the error estimate alone shrinks it."""
+    from rodnet.integrate.implicit import _resize_factor
+    from rodnet.run import _rotations_creep
+
+    def creep(*keys: str) -> bool:
+        return _rotations_creep(prepare(scene_from_toml(reference_scene_text(), list(keys))))
+    assert creep("model.type=cosserat")
+    assert not creep("model.type=cosserat", "model.bending=false", "model.torsion=false")
+    assert not creep("model.type=lumped", "simulation.integrator=bdf2")
+    assert not creep("model.type=cosserat", "simulation.adaptive=false", "simulation.dt=1e-3")
+    many = 4 * NEWTON_TARGET
+    # an error estimate a quarter of the tolerance lets a second-order step grow 1.43 times
+    assert _resize_factor(0.25, 1.0, many, 2, newton_shrinks=True) == pytest.approx(0.5)
+    assert _resize_factor(0.25, 1.0, many, 2, newton_shrinks=False) == 1.0
+    assert _resize_factor(0.25, 1.0, 2, 2, newton_shrinks=False) == pytest.approx(0.9 * 4**(1/3))
+    # an error above the tolerance shrinks the step either way
+    assert _resize_factor(8.0, 1.0, many, 2, newton_shrinks=False) == pytest.approx(0.45)
