@@ -114,8 +114,8 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
         "forces acting in the step, at least 1 % of the largest `EA`), plus 1e-10 N."),
     "simulation.dt_max": (
         "s", "> 0. Implicit integrators with `adaptive = true`: the largest step the adaptive "
-        "control may grow to. Not set: the larger of `dt` and `output.frame_interval`; a value "
-        "below `dt` counts as `dt`."),
+        "control may grow to, the first step included (a value below `dt` shortens the first "
+        "step to it). Not set: the larger of `dt` and `output.frame_interval`."),
     "simulation.reuse_factorization": (
         "-", "Implicit integrators and static runs: an iterate whose residual fell to 0.3 of the "
         "last one's, with no thread changed between slack and taut and no contact opened or "

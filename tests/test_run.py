@@ -233,6 +233,17 @@ def test_a_fixed_step_longer_than_the_frame_interval_is_said_so(tmp_path: Path) 
                                                   "output.frame_interval = 0.01 s")
 
 
+def test_dt_max_below_the_default_dt_bounds_every_step(tmp_path: Path) -> None:
+    """``dt_max`` alone (below the default ``dt`` of 1 ms) bounds the first step too: no step
+    of the adaptive run is longer (it was raised to ``dt`` and ignored)."""
+    r = run(scene_from_toml(PINNED_ROD, ["simulation.adaptive=true", "simulation.dt=1e-3",
+                                         "simulation.dt_max=2e-4", "simulation.duration=0.01"]),
+            tmp_path, progress=False)
+    assert r.status == "ok", r.message
+    assert r.summary["integrator"]["dt_max"] <= 2e-4 * (1 + 1e-12)
+    assert r.summary["steps"] >= 0.01 / 2e-4
+
+
 def test_an_element_held_at_both_ends_and_a_structure_held_everywhere(tmp_path: Path) -> None:
     """Clamps on the first two nodes of a rod leave its first element no bound (C48): the
     explicit plan's bent-element factors were NaN and the run 'diverged at t = nan'; now it

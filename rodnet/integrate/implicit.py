@@ -723,7 +723,7 @@ def integrate_implicit(scheme: Scheme, state: State, times: NDArray[np.float64],
     false not grown after more than 6 (:func:`_resize_factor`).
     Otherwise, after two steps in a row that each converged within four iterations the step
     grows by a quarter. Either way the step stays
-    below ``dt_max`` (default: the interval between saved frames). A step that moves a point
+    below ``dt_max`` (default: the interval between saved frames), the first one too. A step that moves a point
     near a rigid body more than its travel limit is retried shorter; friction work of every
     accepted step is added to the state. At the times in ``restarts`` (where a load jumps) the
     scheme starts afresh (:meth:`Scheme.initial`: consistent accelerations, a multistep
@@ -740,6 +740,8 @@ def integrate_implicit(scheme: Scheme, state: State, times: NDArray[np.float64],
     motion = scheme.initial(state.q, state.v, float(times[0]))
     state.v = motion.v
     on_frame(float(times[0]), state)
+    if adaptive and dt_max is not None:
+        dt = min(dt, dt_max)   # the first step too
     t, h, easy = float(times[0]), dt, 0
     newton_limit = math.inf  # below a step Newton just failed on; relaxed by 1.2 per step
     controlled = adaptive and error_tolerance is not None
