@@ -335,7 +335,11 @@ def _static_increment(system: System, q_start: Configuration, load: float, optio
                             rebases=True)
     result = newton(problem, np.zeros(n_free), scale, solver, options, history)
     if result.singular:
+        bodies = ("; contact holds threads only along a body's normal, without friction in a "
+                  "static run, so a thread lying on a body can still slide along it (support "
+                  "it there, or run the scene dynamically with damping)"
+                  if getattr(system, "contact", None) is not None else "")
         raise SimulationFailed(
             "the static tangent stiffness is singular: the structure is not supported against "
-            "rigid motion (add [[supports]]) or a DOF has no stiffness")
+            "rigid motion (add [[supports]]) or a DOF has no stiffness" + bodies)
     return moved(result.u), result

@@ -12,7 +12,7 @@ import trimesh
 from rodnet.cli import main
 from rodnet.contact.bodies import euler_xyz_matrix
 from rodnet.errors import SceneError
-from rodnet.run import prepare
+from rodnet.run import prepare, run
 from rodnet.scene import load_scene, scene_from_toml
 from tests.conftest import small_net_toml
 
@@ -236,3 +236,40 @@ def test_contact_defaults_and_orientation() -> None:
     np.testing.assert_allclose(R, [[0, 0, 1], [1, 0, 0], [0, 1, 0]], atol=1e-15)
     np.testing.assert_allclose(model.contact.bodies.rotation[0], R)
     np.testing.assert_allclose(np.linalg.norm(q), 1.0)
+
+
+CABLE_ON_A_BOX = """
+[simulation]
+type = "static"
+gravity = [0.0, 0.0, -9.81]
+[model]
+type = "cosserat"
+bending = false
+torsion = false
+[[materials]]
+name = "m"
+density = 1000.0
+youngs_modulus = 1e8
+diameter = 0.002
+[[rods]]
+name = "c"
+material = "m"
+points = [[-0.1, 0.0, 0.002], [0.1, 0.0, 0.002]]
+elements = 4
+[[bodies]]
+name = "b"
+shape = "box"
+size = [1.0, 1.0, 1.0]
+position = [0.0, 0.0, -0.5]
+fixed = true
+[output]
+vtk = false
+"""
+
+
+def test_a_static_cable_lying_on_a_box_is_said_to_slide_along_it(tmp_path: Path) -> None:
+    """Static contact holds along the normal only and has no friction: a cable resting on a box
+    top with no support is free to slide along it, and the failure says so."""
+    result = run(scene_from_toml(CABLE_ON_A_BOX), tmp_path, progress=False)
+    assert result.status == "failed"
+    assert "singular" in result.message and "along a body's normal" in result.message
