@@ -157,12 +157,6 @@ class BodyContact:
         """(B,) radius of each body's bounding sphere about its centre of mass [m]."""
         return np.array([np.linalg.norm(np.abs(s.bounds).max(axis=0)) for s in self.shapes])
 
-    def node_share(self, n_nodes: int) -> NDArray[np.int64]:
-        """Number of contact points that can act on each node: the node itself plus the
-        interior points of its segments, (N,)."""
-        degree = np.bincount(self.segments.ravel(), minlength=n_nodes)
-        return (1 + degree * (self.points_per_segment - 1)).astype(np.int64)
-
     def combined_step(self, threads: float, inv_mass: FloatArray) -> float:
         """The explicit limit [s] of threads whose own limit is ``threads`` [s] with these contact
         springs added (E1): ``1/dt^2 = 1/dt_threads^2 + 1/dt_contact^2``, which is

@@ -78,7 +78,7 @@ def kernel_data(contact: BodyContact, inv_mass: NDArray[np.float64]) -> ContactD
     f = np.ascontiguousarray
     return ContactData(
         f(inv_mass, dtype=np.float64), f(contact.segments, dtype=np.int64),
-        f(contact.radius, dtype=np.float64), contact.node_share(len(inv_mass)),
+        f(contact.radius, dtype=np.float64),
         np.array(codes, np.int64), np.array(sizes, np.float64), bounds, bound_radius,
         f(contact.travel_limit, dtype=np.float64), f(contact.compliance(), dtype=np.float64),
         mesh_root, *mesh, float(law.stiffness), float(law.damping), float(law.friction),

@@ -8,11 +8,12 @@ to the segment's nodes (B5) with the body's reaction force and moment (B6). Equa
 ``elements/contact/FORMULATION.md``. The NumPy building blocks of :mod:`rodnet.contact` are the
 oracle: ``tests/contact/test_contact_model.py`` checks this kernel against them point by point.
 
-Two things are specific to the explicit scheme, (E2)-(E3). Friction's viscous slope ``mu N / S``
-is capped at ``m_eff / (dt share)`` (``m_eff`` the point's effective mass
-``1 / (N_a^2/m_a + N_b^2/m_b)``, ``share`` the number of points that can act on its nodes), the
-largest damping a symplectic Euler step resolves without overshoot; it only acts below a slip
-speed of order ``mu N dt share / m_eff`` and leaves sliding friction ``mu N`` unchanged. And every
+Two things are specific to the explicit scheme, (E2)-(E3). Friction acts on the slip the step
+would end with under the forces added so far, this point's friction left out, and its viscous
+slope ``mu N / S`` is capped at ``m_eff / dt`` (``m_eff`` the point's effective mass
+``1 / (N_a^2/m_a + N_b^2/m_b)``): each point's friction stops at most that slip, a step of
+coordinate descent on the step's kinetic energy, so it holds a sticking point and never adds
+energy; sliding friction ``mu N`` is unchanged. And every
 segment whose nodes could reach a body within the step reports the step that keeps its travel
 within the body's travel limit, so the explicit loop (:mod:`rodnet.kernels.explicit`) can shorten
 the step before a point jumps over a thin body; the loop visits a body only when a thread can
@@ -34,8 +35,7 @@ class ContactData(NamedTuple):
     """The read-only arrays of the contact of thread segments with rigid bodies.
 
     ``inv_mass`` (N,): 1 / mass of the nodes [1/kg] for the friction cap (E2); ``segments``
-    (S, 2) node pairs and ``radius`` (S,) [m]; ``node_share`` (N,): contact points that can act
-    on a node; per body (B): ``kind`` (0 box, 1 cylinder, 2 sphere, 3 mesh), ``body_size`` (B, 3),
+    (S, 2) node pairs and ``radius`` (S,) [m]; per body (B): ``kind`` (0 box, 1 cylinder, 2 sphere, 3 mesh), ``body_size`` (B, 3),
     ``body_bounds`` (B, 2, 3) [m], ``bound_radius``, ``travel_limit`` [m], ``body_compliance``
     [1/kg] and ``mesh_root`` (-1 for primitives); the meshes' hierarchies and pseudonormals
     concatenated (``tri`` ... ``corner_normal``); the law's ``stiffness`` [N/m], ``damping``
@@ -46,7 +46,6 @@ class ContactData(NamedTuple):
     inv_mass: np.ndarray
     segments: np.ndarray
     radius: np.ndarray
-    node_share: np.ndarray
     kind: np.ndarray
     body_size: np.ndarray
     body_bounds: np.ndarray
@@ -90,7 +89,7 @@ class ContactScratch(NamedTuple):
 def no_contact() -> ContactData:
     """:class:`ContactData` without bodies (a scene without ``[[bodies]]``)."""
     z, i = np.zeros, np.int64
-    return ContactData(z(0), z((0, 2), i), z(0), z(0, i), z(0, i), z((0, 3)), z((0, 2, 3)), z(0),
+    return ContactData(z(0), z((0, 2), i), z(0), z(0, i), z((0, 3)), z((0, 2, 3)), z(0),
                        z(0), z(0), z(0, i), z((0, 3, 3)), z((0, 3)), z((0, 3)), z(0, i), z(0, i),
                        z(0, i), z(0, i), z(0, i), z((0, 3)), z((0, 3, 3)), z((0, 3, 3)), 0.0, 0.0,
                        0.0, 0.0, 1.0, 1)
@@ -225,7 +224,7 @@ def _distance(code, size, root, p, n, tri, lower, upper, left, right, start, cou
 
 
 @numba.njit(cache=True)
-def _point_force(delta, nl, R, xi, a, b, v, dt, inv_mass, node_share, body_compliance, arm,
+def _point_force(delta, nl, R, xi, a, b, v, dt, inv_mass, body_compliance, arm,
                  body_velocity, body_omega, stiffness, damping, friction, smoothing, slip_velocity,
                  force, body_force, body_moment, nw, vp):  # pragma: no cover - compiled
     """Force on the point at ``xi`` of segment a-b with penetration ``delta`` and body-frame
@@ -259,13 +258,25 @@ def _point_force(delta, nl, R, xi, a, b, v, dt, inv_mass, node_share, body_compl
     for k in range(3):
         vp[k] -= vn * nw[k]
         slip2 += vp[k] * vp[k]
+    slip_now2 = slip2
+    if dt > 0.0:
+        # (E2) the slip the step ends with under the forces so far, this friction left out
+        wa, wb = 1.0 - xi, xi
+        d0 = dt * (wa * force[a, 0] * inv_mass[a] + wb * force[b, 0] * inv_mass[b])
+        d1 = dt * (wa * force[a, 1] * inv_mass[a] + wb * force[b, 1] * inv_mass[b])
+        d2 = dt * (wa * force[a, 2] * inv_mass[a] + wb * force[b, 2] * inv_mass[b])
+        dn = d0 * nw[0] + d1 * nw[1] + d2 * nw[2]
+        slip_now2 = vp[0] * (vp[0] + d0 - dn * nw[0]) + vp[1] * (vp[1] + d1 - dn * nw[1]) \
+            + vp[2] * (vp[2] + d2 - dn * nw[2])
+        vp[0] += d0 - dn * nw[0]
+        vp[1] += d1 - dn * nw[1]
+        vp[2] += d2 - dn * nw[2]
+        slip2 = vp[0] * vp[0] + vp[1] * vp[1] + vp[2] * vp[2]
     viscous = friction * normal / math.sqrt(slip2 + slip_velocity * slip_velocity)
     if dt > 0.0:
-        wa, wb = 1.0 - xi, xi
         compliance = wa * wa * inv_mass[a] + wb * wb * inv_mass[b] + body_compliance
-        share = max(node_share[a] if wa > 0.0 else 0, node_share[b] if wb > 0.0 else 0)
         if compliance > 0.0:
-            viscous = min(viscous, 1.0 / (compliance * dt * share))
+            viscous = min(viscous, 1.0 / (compliance * dt))
     f2 = 0.0
     for k in range(3):
         fk = normal * nw[k] - viscous * vp[k]
@@ -277,7 +288,7 @@ def _point_force(delta, nl, R, xi, a, b, v, dt, inv_mass, node_share, body_compl
     body_moment[0] -= arm[1] * vp[2] - arm[2] * vp[1]
     body_moment[1] -= arm[2] * vp[0] - arm[0] * vp[2]
     body_moment[2] -= arm[0] * vp[1] - arm[1] * vp[0]
-    return math.sqrt(f2), viscous * slip2
+    return math.sqrt(f2), viscous * slip_now2
 
 
 @numba.njit(cache=True)
@@ -337,7 +348,7 @@ def accumulate_contact(x, v, force, dt, data, body_position, body_rotation, body
         The largest step [s] that keeps every segment near a body within its travel limit
         (inf when none is limiting, or ``dt`` <= 0).
     """
-    (inv_mass, segments, radius, node_share, kind, body_size, body_bounds, bound_radius,
+    (inv_mass, segments, radius, kind, body_size, body_bounds, bound_radius,
      travel_limit, body_compliance, mesh_root, tri, lower, upper, left, right, start, count,
      order, face_normal, edge_normal, corner_normal, stiffness, damping, friction, smoothing,
      slip_velocity, points_per_segment) = data
@@ -403,7 +414,7 @@ def accumulate_contact(x, v, force, dt, data, body_position, body_rotation, body
                 for k in range(3):
                     arm[k] = (1.0 - xi) * x[a, k] + xi * x[b, k] - p[k]
                 magnitude, dissipation = _point_force(
-                    radius[s] - d, nl, R, xi, a, b, v, dt, inv_mass, node_share,
+                    radius[s] - d, nl, R, xi, a, b, v, dt, inv_mass,
                     body_compliance[bi], arm, body_velocity[bi], body_omega[bi], stiffness,
                     damping, friction, smoothing, slip_velocity, force, body_force[bi],
                     body_moment[bi], nw, vp)
