@@ -522,6 +522,26 @@ def _loads_on_supports(p: Prepared) -> list[str]:
     return out
 
 
+VISCOUS_STEP_FACTOR = 2.0
+"""An explicit stability limit this many times shorter with the threads' damping than without
+it is said in the warnings (S10: strong Kelvin-Voigt damping shortens the limit as 1 / zeta)."""
+
+
+def _viscous_step(p: Prepared) -> list[str]:
+    """The warning of an explicit lumped, cable or Kirchhoff run whose step the threads'
+    viscosity shortens by more than :data:`VISCOUS_STEP_FACTOR` (a draped cable with viscosity
+    1e6 Pa s took 35.6 million steps)."""
+    if p.scene.integrator != "explicit" or MODELS[p.built.variant].stable_step is None:
+        return []                          # rods: their plan (C48, C49) takes the step
+    damped, free = p.model.stable_step(), p.model.stable_step(damped=False)
+    if not (np.isfinite(free) and free > VISCOUS_STEP_FACTOR * damped):
+        return []
+    return [f"the explicit stability limit is {damped:.3g} s, {free / damped:.3g} times shorter "
+            f"than the {free:.3g} s it would be without the threads' Kelvin-Voigt damping "
+            "(S10): materials.viscosity sets the step; a smaller viscosity, or an implicit "
+            "integrator, takes fewer steps"]
+
+
 def _warnings(p: Prepared, stats: StepStats, monitors: dict[str, float]) -> list[str]:
     """What the user should know about a completed or failed run: a clamp on threads without
     rotations (it holds the node's position only, as a pin does: such threads pass no moment);
@@ -529,9 +549,10 @@ def _warnings(p: Prepared, stats: StepStats, monitors: dict[str, float]) -> list
     a rod element turned past the rotation stop (C52), where the stop's moment, not the
     section, resisted its rotation; a node held by more than one support entry; a load that
     its node's supports take whole; a static run with rod elements turned inside out (C51);
-    a fixed step longer than the frame interval.
+    a fixed step longer than the frame interval; an explicit step that the threads'
+    Kelvin-Voigt damping shortens more than :data:`VISCOUS_STEP_FACTOR` times.
     ``monitors``: the frames' largest values of :data:`rodnet.io.recorder.MONITORS`."""
-    out = []
+    out = _viscous_step(p)
     if not len(p.model.rotation_dofs()):
         label = MODELS[p.built.variant].label
         out += [f"supports[{i}].fix = 'clamp' holds only the node's position, as fix = 'pin' "

@@ -149,13 +149,14 @@ class LumpedModel:
         NumPy oracle of the compiled :func:`rodnet.kernels.explicit.forces`)."""
         return self.segment_force(x, v) + self.external_force(t)
 
-    def stable_step(self) -> float:
+    def stable_step(self, damped: bool = True) -> float:
         """Largest stable step [s] of the explicit (symplectic Euler) scheme, (S10).
 
         Each segment is taken as the stiffest mode it can drive: omega^2 = 2 k (1/m_a + 1/m_b)
-        (the highest mode of a uniform chain, 4 k / m), with its Kelvin-Voigt damping ratio;
-        bending hinges raise every segment's omega^2 by 4 times the largest hinge's (K5), which
-        holds in every configuration (their stiffness is constant).
+        (the highest mode of a uniform chain, 4 k / m), with its Kelvin-Voigt damping ratio
+        (``damped`` false: without it); bending hinges raise every segment's omega^2 by 4 times
+        the largest hinge's (K5), which holds in every configuration (their stiffness is
+        constant).
         """
         a, b = self.segments[:, 0], self.segments[:, 1]
         k = self.EA / self.rest_length
@@ -165,7 +166,8 @@ class LumpedModel:
             omega2 = omega2 + 4.0 * np.max(hinge_frequency(h.nodes, h.stiffness, h.rest,
                                                            self.inv_mass)) ** 2
         omega = np.sqrt(omega2)
-        return float(np.min(damped_limit(omega, self.etaA / self.EA), initial=np.inf))
+        tau = self.etaA / self.EA if damped else np.zeros_like(omega)
+        return float(np.min(damped_limit(omega, tau), initial=np.inf))
 
     # --- what the system composes (rodnet.models.system) ---------------------------------
 
