@@ -323,5 +323,6 @@ def check_start_clear(contact: BodyContact, structure: Structure) -> None:
         raise SceneError(f"bodies[{b}]", contact.names[b],
                          f"starts in contact with the threads: {what} {node}{label} at "
                          f"{np.array2string(x[node], precision=4)} m is inside the body or "
-                         "closer to its surface than the thread radius; move the body or the "
-                         "threads apart")
+                         "not farther from its surface than the thread radius; move the body or "
+                         "the threads apart (a gap above zero between the thread's surface and "
+                         "the body's)")
