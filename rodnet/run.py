@@ -378,6 +378,7 @@ def run(scene: Scene, directory: str | Path | None = None, *, progress: bool | N
             arrays = recorder.arrays(structure.n_nodes, len(structure.segments))
             arrays["segments"] = np.asarray(structure.segments)
             arrays["support_nodes"] = supported_nodes(p)
+            arrays.update(_inertias(p))
             summary = _summary(p, arrays, stats, status, message, wall, recorder.monitors)
             summary["threads"] = n_threads
             if stopped_by is not None:
@@ -459,6 +460,17 @@ def _stability_advice(p: Prepared) -> str:
         return ("reduce simulation.explicit_safety; if integrator.max_element_rotation in "
                 "summary.json is near 2 pi, use more elements_per_thread")
     return "reduce simulation.explicit_safety (or simulation.dt with adaptive = false)"
+
+
+def _inertias(p: Prepared) -> dict[str, NDArray[np.float64]]:
+    """The masses the run moves: ``node_mass`` (N,) [kg] and, for rod sections,
+    ``rotation_node_inertia`` (R, 3) [kg m^2] in each rotation node's material frame (explicit
+    runs: as raised by C49), so that momenta can be summed from the frames."""
+    out = {"node_mass": np.asarray(p.mass, dtype=float)}
+    inertia = getattr(p.model, "rotary_inertia", None)
+    if inertia is not None and len(inertia):
+        out["rotation_node_inertia"] = np.asarray(inertia, dtype=float)
+    return out
 
 
 def supported_nodes(p: Prepared) -> NDArray[np.int64]:
