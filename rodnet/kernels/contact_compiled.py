@@ -35,8 +35,8 @@ class ContactData(NamedTuple):
     """The read-only arrays of the contact of thread segments with rigid bodies.
 
     ``inv_mass`` (N,): 1 / mass of the nodes [1/kg] for the friction cap (E2); ``segments``
-    (S, 2) node pairs and ``radius`` (S,) [m]; per body (B): ``kind`` (0 box, 1 cylinder, 2 sphere, 3 mesh), ``body_size`` (B, 3),
-    ``body_bounds`` (B, 2, 3) [m], ``bound_radius``, ``travel_limit`` [m], ``body_compliance``
+    (S, 2) node pairs and ``radius`` (S,) [m]; per body (B): ``kind`` (0 box, 1 cylinder, 2
+    sphere, 3 mesh), ``body_size`` (B, 3), ``body_bounds`` (B, 2, 3) [m], ``bound_radius``, ``travel_limit`` [m], ``body_compliance``
     [1/kg] and ``mesh_root`` (-1 for primitives); the meshes' hierarchies and pseudonormals
     concatenated (``tri`` ... ``corner_normal``); the law's ``stiffness`` [N/m], ``damping``
     [N s/m], ``friction``, ``smoothing`` [m], ``slip_velocity`` [m/s]; ``points_per_segment``.
@@ -258,25 +258,25 @@ def _point_force(delta, nl, R, xi, a, b, v, dt, inv_mass, body_compliance, arm,
     for k in range(3):
         vp[k] -= vn * nw[k]
         slip2 += vp[k] * vp[k]
-    slip_now2 = slip2
+    slip_now2, cap = slip2, math.inf
     if dt > 0.0:
-        # (E2) the slip the step ends with under the forces so far, this friction left out
+        # (E2) the slip the step ends with under the forces so far, this friction left out,
+        # and the slope that stops it in the step
         wa, wb = 1.0 - xi, xi
         d0 = dt * (wa * force[a, 0] * inv_mass[a] + wb * force[b, 0] * inv_mass[b])
         d1 = dt * (wa * force[a, 1] * inv_mass[a] + wb * force[b, 1] * inv_mass[b])
         d2 = dt * (wa * force[a, 2] * inv_mass[a] + wb * force[b, 2] * inv_mass[b])
         dn = d0 * nw[0] + d1 * nw[1] + d2 * nw[2]
-        slip_now2 = vp[0] * (vp[0] + d0 - dn * nw[0]) + vp[1] * (vp[1] + d1 - dn * nw[1]) \
-            + vp[2] * (vp[2] + d2 - dn * nw[2])
-        vp[0] += d0 - dn * nw[0]
-        vp[1] += d1 - dn * nw[1]
-        vp[2] += d2 - dn * nw[2]
-        slip2 = vp[0] * vp[0] + vp[1] * vp[1] + vp[2] * vp[2]
-    viscous = friction * normal / math.sqrt(slip2 + slip_velocity * slip_velocity)
-    if dt > 0.0:
+        slip_now2, slip2 = 0.0, 0.0
+        for k, dk in enumerate((d0, d1, d2)):
+            ends = vp[k] + (dk - dn * nw[k])
+            slip_now2 += vp[k] * ends
+            vp[k] = ends
+            slip2 += ends * ends
         compliance = wa * wa * inv_mass[a] + wb * wb * inv_mass[b] + body_compliance
         if compliance > 0.0:
-            viscous = min(viscous, 1.0 / (compliance * dt))
+            cap = 1.0 / (compliance * dt)
+    viscous = min(friction * normal / math.sqrt(slip2 + slip_velocity * slip_velocity), cap)
     f2 = 0.0
     for k in range(3):
         fk = normal * nw[k] - viscous * vp[k]
