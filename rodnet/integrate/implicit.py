@@ -331,19 +331,30 @@ class Scheme:
         post, a tumbling 1 kg box took moment residuals of 1.6e-3 N m each step (1 % of its
         gyroscopic moment) and flipped 1.2 s late. None without free bodies."""
         s = self.system
-        groups = s.body_dof_groups()
+        groups, rows = self._body_groups()
         if not len(groups):
             return None
-        position = np.full(s.n_dof, -1)
-        position[np.flatnonzero(s.free)] = np.arange(int(s.free.sum()))
         weights = np.ones(int(s.free.sum()))
-        for group in groups:                           # (3,) DOFs: a body's V or its W
+        for group, row in zip(groups, rows):           # (3,) DOFs: a body's V or its W
             mass = s.dof_mass[group]
             own = max(float(np.abs(mass * state.vd[group]).max()),
                       BODY_MOMENTUM_FLOOR * float(np.abs(mass * state.v[group]).max()) / h)
             if own > 0.0:
-                weights[position[group]] = max(1.0, scale / own)
+                weights[row] = max(1.0, scale / own)
         return weights
+
+    def _body_groups(self) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        """The free bodies' DOF groups (G, 3) (:meth:`System.body_dof_groups`) and their
+        positions among the free DOFs (G, 3), computed once."""
+        cached = self.__dict__.get("_body_groups_cache")
+        if cached is None:
+            s = self.system
+            groups = s.body_dof_groups()
+            position = np.full(s.n_dof, -1)
+            position[np.flatnonzero(s.free)] = np.arange(int(s.free.sum()))
+            cached = (groups, position[groups])
+            self.__dict__["_body_groups_cache"] = cached
+        return cached
 
     def _rotation_triples(self) -> NDArray[np.int64]:
         """(F, 3) positions among the free DOFs of the rotation nodes whose three rotations are
@@ -722,9 +733,9 @@ def integrate_implicit(scheme: Scheme, state: State, times: NDArray[np.float64],
     ``(6 / iterations)^(1/2)`` for the Newton iterations it took, or with ``newton_shrinks``
     false not grown after more than 6 (:func:`_resize_factor`).
     Otherwise, after two steps in a row that each converged within four iterations the step
-    grows by a quarter. Either way the step stays
-    below ``dt_max`` (default: the interval between saved frames), the first one too. A step that moves a point
-    near a rigid body more than its travel limit is retried shorter; friction work of every
+    grows by a quarter. Either way the step stays below ``dt_max`` (default: the interval
+    between saved frames), the first one too. A step that moves a point near a rigid body
+    more than its travel limit is retried shorter; friction work of every
     accepted step is added to the state. At the times in ``restarts`` (where a load jumps) the
     scheme starts afresh (:meth:`Scheme.initial`: consistent accelerations, a multistep
     scheme's first step), so that no step's formula reaches across the jump.
