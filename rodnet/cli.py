@@ -346,8 +346,10 @@ def _report(result) -> None:  # type: ignore[no-untyped-def]
         return
     work = (f" ({s['newton_iterations']} Newton iterations, {s['rejected_steps']} rejected)"
             if s["newton_iterations"] else "")
-    print(f"rodnet: done in {s['wall_time_s']:.2f} s wall, {s['steps']} steps{work}; results in "
-          f"{result.directory}/")
+    compiled = (f" ({s['compile_time_s']:.1f} s of it compiling kernels, a first run's cost)"
+                if s.get("compile_time_s", 0.0) >= 0.5 else "")
+    print(f"rodnet: done in {s['wall_time_s']:.2f} s wall{compiled}, {s['steps']} steps{work}; "
+          f"results in {result.directory}/")
     for key, value in s["metrics"].items():
         print(f"  {key:28s} {value:.6g}")
 

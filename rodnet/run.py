@@ -25,6 +25,7 @@ from typing import Any, Callable
 
 import numpy as np
 import scipy.sparse as sp
+from numba.core import event
 from numpy.typing import NDArray
 from scipy.sparse.csgraph import connected_components
 
@@ -361,7 +362,8 @@ def run(scene: Scene, directory: str | Path | None = None, *, progress: bool | N
     integrate = INTEGRATORS[scene.integrator] if dynamic else _static
     start = time.perf_counter()
     stopped_by = None
-    with _stop_on_signals() as stop:
+    compiling = event.TimingListener()
+    with _stop_on_signals() as stop, event.install_listener("numba:compile", compiling):
         try:
             stats = integrate(p, stop.checked(recorder), stop.checked(bar), stats)
         except SimulationFailed as exc:
@@ -381,6 +383,7 @@ def run(scene: Scene, directory: str | Path | None = None, *, progress: bool | N
             arrays.update(_inertias(p))
             summary = _summary(p, arrays, stats, status, message, wall, recorder.monitors)
             summary["threads"] = n_threads
+            summary["compile_time_s"] = compiling.duration if compiling.done else 0.0
             if stopped_by is not None:
                 summary["signal"] = stopped_by
             for key, value in p.system.summary(arrays).items():

@@ -83,6 +83,34 @@ def test_interrupt_keeps_frames(tmp_path: Path, monkeypatch) -> None:
     assert len(np.load(tmp_path / "result.npz")["time"]) == 5
 
 
+def test_compile_time_is_the_compiling_inside_the_timed_run(tmp_path: Path, monkeypatch,
+                                                           capsys) -> None:
+    """``compile_time_s`` sums numba's compile events during the time stepping (nested ones
+    once): a frame that compiles for 0.6 s (a fake event around a sleep) is counted, and the
+    command line says so."""
+    import time
+
+    from numba.core import event
+
+    original = Recorder.__call__
+
+    def compile_on_third_frame(self, t, state):
+        if len(self.time) == 3:
+            with event.trigger_event("numba:compile", data={}):
+                with event.trigger_event("numba:compile", data={}):
+                    time.sleep(0.6)
+        original(self, t, state)
+
+    monkeypatch.setattr(Recorder, "__call__", compile_on_third_frame)
+    scene = tmp_path / "scene.toml"
+    scene.write_text(small_net_toml(duration=0.1))
+    main(["run", str(scene), "-o", str(tmp_path / "o")])
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert 0.6 <= summary["compile_time_s"] < 0.6 + 0.5 * summary["wall_time_s"]
+    assert summary["compile_time_s"] < summary["wall_time_s"]
+    assert "s of it compiling kernels" in capsys.readouterr().out
+
+
 def test_cli_failed_run_exit_status(tmp_path: Path, monkeypatch) -> None:
     real = LumpedModel.stable_step
     monkeypatch.setattr(LumpedModel, "stable_step",
