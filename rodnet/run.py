@@ -622,6 +622,7 @@ def _summary(p: Prepared, arrays: dict[str, NDArray[Any]], stats: StepStats, sta
         "status": status, "message": message, "wall_time_s": wall,
         "steps": stats.steps, "newton_iterations": stats.newton_iterations,
         "factorizations": stats.factorizations, "rejected_steps": stats.rejected_steps,
+        "retaken_steps": stats.retaken_steps,
         "function_evaluations": stats.function_evaluations,
         "frames": len(arrays["time"]), "simulated_time_s": float(arrays["time"][-1]) if len(arrays["time"]) else 0.0,
         "integrator": {"name": p.scene.integrator,

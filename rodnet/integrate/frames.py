@@ -17,6 +17,9 @@ class StepStats:
     newton_iterations: int = 0
     factorizations: int = 0
     rejected_steps: int = 0
+    retaken_steps: int = 0
+    """Accepted steps of a second-order implicit scheme that its energy guard took again as
+    backward Euler (first order)."""
     function_evaluations: int = 0
     max_tension: float = 0.0
     dt_min: float = float("inf")

@@ -66,6 +66,8 @@ class MotionState:
     first_order : bool
         That step was a second-order scheme's backward-Euler step: its start, or a step taken
         again by the energy guard.
+    retaken : bool
+        That step was taken again by the energy guard (:meth:`Scheme._guarded`).
     """
 
     q: Configuration
@@ -79,6 +81,7 @@ class MotionState:
     v_previous: FloatArray | None = None
     strain_previous: Any = None
     first_order: bool = False
+    retaken: bool = False
 
 
 @dataclass
@@ -180,7 +183,7 @@ class Scheme:
         euler_result.add_counts(result)
         if not euler_result.converged:
             return new, result
-        euler.first_order = True
+        euler.first_order = euler.retaken = True
         return euler, euler_result
 
     # --- the Newton set-up common to every scheme ----------------------------------------
@@ -801,6 +804,7 @@ def integrate_implicit(scheme: Scheme, state: State, times: NDArray[np.float64],
                 h = min(max(h_try * factor, h if h_try < h and factor >= 1.0 else 0.0), dt_max)
             motion, t = new, t + h_try
             stats.record_step(h_try)
+            stats.retaken_steps += new.retaken
             newton_limit = 1.2 * newton_limit if newton_limit < dt_max else math.inf
             h = min(h, newton_limit)
             state.friction_work += system.step_work(motion.q, motion.v, h_try)

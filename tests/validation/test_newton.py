@@ -169,3 +169,4 @@ def test_bdf2_never_gains_energy_on_the_net_with_thick_threads(tmp_path) -> None
     energy = r.arrays["kinetic_energy"] + r.arrays["elastic_energy"]
     assert energy.max() <= energy[0] * (1.0 + 1e-3)
     assert r.arrays["time"][-1] == pytest.approx(0.15)
+    assert 0 < r.summary["retaken_steps"] < r.summary["steps"]   # the guard acted, and said so
