@@ -25,7 +25,6 @@ from typing import Any, Callable
 
 import numpy as np
 import scipy.sparse as sp
-from numba.core import event
 from numpy.typing import NDArray
 from scipy.sparse.csgraph import connected_components
 
@@ -43,6 +42,7 @@ from rodnet.io.recorder import FrameCheck, Recorder, energy_guard
 from rodnet.io.restart import restarted, saved_frame
 from rodnet.io.results import output_directory, scene_as_dict, write_npz, write_summary
 from rodnet.io.vtk import VtkSeries
+from rodnet.kernels.cache import compile_timer
 from rodnet.kernels.cosserat_strain import ROTATION_STOP
 from rodnet.kernels.schedule import break_times, schedule_of
 from rodnet.kernels.threads import use_threads
@@ -362,8 +362,7 @@ def run(scene: Scene, directory: str | Path | None = None, *, progress: bool | N
     integrate = INTEGRATORS[scene.integrator] if dynamic else _static
     start = time.perf_counter()
     stopped_by = None
-    compiling = event.TimingListener()
-    with _stop_on_signals() as stop, event.install_listener("numba:compile", compiling):
+    with _stop_on_signals() as stop, compile_timer() as compiling:
         try:
             stats = integrate(p, stop.checked(recorder), stop.checked(bar), stats)
         except SimulationFailed as exc:
@@ -383,7 +382,7 @@ def run(scene: Scene, directory: str | Path | None = None, *, progress: bool | N
             arrays.update(_inertias(p))
             summary = _summary(p, arrays, stats, status, message, wall, recorder.monitors)
             summary["threads"] = n_threads
-            summary["compile_time_s"] = compiling.duration if compiling.done else 0.0
+            summary["compile_time_s"] = compiling()
             if stopped_by is not None:
                 summary["signal"] = stopped_by
             for key, value in p.system.summary(arrays).items():

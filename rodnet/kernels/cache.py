@@ -17,7 +17,12 @@ from __future__ import annotations
 
 import hashlib
 import os
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
+from typing import Callable
+
+from numba.core import event
 
 PACKAGE = Path(__file__).resolve().parents[1]
 
@@ -94,3 +99,13 @@ def refresh(sources: tuple[Path, ...] | list[Path] = SOURCES,
         except OSError:  # read-only install, or another process cleaning at the same time
             continue
     return removed
+
+
+@contextmanager
+def compile_timer() -> Iterator[Callable[[], float]]:
+    """Time numba's compiling inside the block: yields a function that returns the wall seconds
+    spent compiling so far (a compile nested in another counted once; loading a cached kernel
+    is not compiling)."""
+    listener = event.TimingListener()
+    with event.install_listener("numba:compile", listener):
+        yield lambda: listener.duration if listener.done else 0.0
