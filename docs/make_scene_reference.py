@@ -210,7 +210,9 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
     "net.center": ("m", "Centre of the net, deployed and packed."),
     "net.direction": (
         "-", "Shooting direction, non-zero (normalised). The net starts in the plane normal to "
-        "it; mouth area and distance are measured with it."),
+        "it, knot `i` to `i+1` along `u`, the global x axis projected on that plane (the y "
+        "axis when `|direction_x| >= 0.9` of its length), and knot `i` to `i+Ns` along "
+        "`direction x u`; mouth area and distance are measured with it."),
     "net.packing": (
         "-", "Initial size / deployed size, in (0, 1]. Every initial position is the flat "
         "deployed layout scaled by `packing` about `center`; every thread keeps its direction, "
