@@ -375,14 +375,14 @@ def run(scene: Scene, directory: str | Path | None = None, *, progress: bool | N
         finally:
             stop.armed = False
             bar.close()
-            wall = time.perf_counter() - start
+            wall, compiled = time.perf_counter() - start, compiling()
             arrays = recorder.arrays(structure.n_nodes, len(structure.segments))
             arrays["segments"] = np.asarray(structure.segments)
             arrays["support_nodes"] = supported_nodes(p)
             arrays.update(_inertias(p))
             summary = _summary(p, arrays, stats, status, message, wall, recorder.monitors)
             summary["threads"] = n_threads
-            summary["compile_time_s"] = compiling()
+            summary["compile_time_s"] = compiled
             if stopped_by is not None:
                 summary["signal"] = stopped_by
             for key, value in p.system.summary(arrays).items():
