@@ -384,7 +384,12 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
         "steps, integrator, output and bodies) whose saved state starts this run: positions, "
         "rotations, velocities and, for the explicit integrator, the bodies. Time continues from "
         "the saved frame's time to `simulation.duration` (the end time). A static run's result "
-        "starts a dynamic run from its equilibrium. Not set: the scene's own initial state."),
+        "starts a dynamic run from its equilibrium. Checked: the same numbers of nodes, rotation "
+        "nodes and bodies. Everything else comes from this scene (materials, stress-free "
+        "shape, `[[supports]]`, loads), so a structure can be held differently from the saved "
+        "state on (a thread stretched by a static load, then pinned at both ends: its tension "
+        "kept to 1e-7, outside check); a changed material or shape starts it under other "
+        "stresses, unchecked. Not set: the scene's own initial state."),
     "initial.frame": (
         "", "Which saved frame of `from`: an index, negative from the end (-1: the last)."),
     "initial.time": (
