@@ -2,10 +2,11 @@
 builders of rods (:mod:`rodnet.models.cosserat.build`) and nets (:mod:`rodnet.models.cosserat.net`)
 share.
 
-Node triads: ``d1`` along the centreline (the mean of the adjacent segment directions), ``d2``,
-``d3`` carried along each rod by parallel transport from a first triad whose ``d2`` is the global
-z axis projected normal to ``d1`` (y when ``d1`` is along z). The stress-free strains are measured
-from these triads, so any choice is stress-free; parallel transport keeps the reference twist zero.
+Rod triads (:func:`corner_triads`): ``d1`` along each element's chord, ``d2``, ``d3`` carried
+along each rod by parallel transport from a first triad whose ``d2`` is the global z axis
+projected normal to ``d1`` (y when ``d1`` is along z); a polyline's corner joins its two elements
+rigidly through an end offset. The stress-free strains are measured from these triads, so any
+choice is stress-free; parallel transport keeps the reference twist zero.
 """
 
 from __future__ import annotations
@@ -20,27 +21,34 @@ from rodnet.kernels import so3
 FloatArray = NDArray[np.float64]
 
 
-def node_triads(points: FloatArray, segments: NDArray[np.int64], thread: NDArray[np.int64]) -> FloatArray:
-    """Rotation matrices (N, 3, 3) of the nodes of chains of segments (columns d1, d2, d3)."""
-    n = len(points)
-    tangent = np.zeros((n, 3))
+def corner_triads(points: FloatArray, segments: NDArray[np.int64], thread: NDArray[np.int64]
+                  ) -> tuple[FloatArray, FloatArray]:
+    """Triads of a polyline taken literally: each element straight with ``d1`` along its chord,
+    the triad carried from element to element by the smallest rotation between their chords
+    (parallel transport, so no reference twist), and a node's triad that of the element
+    ending there (the first element's at a chain's first node).
+
+    Returns
+    -------
+    R_nodes : (N, 3, 3) float
+        The nodes' triads (columns d1, d2, d3).
+    offset_R : (E, 2, 3, 3) float
+        Each element end's triad in its node's frame, ``R_node^T R_element``: the identity
+        except at a corner of the polyline, where the node joins its two elements rigidly.
+    """
     d = points[segments[:, 1]] - points[segments[:, 0]]
     d /= np.linalg.norm(d, axis=1)[:, None]
-    np.add.at(tangent, segments[:, 0], d)
-    np.add.at(tangent, segments[:, 1], d)
-    tangent /= np.linalg.norm(tangent, axis=1)[:, None]
-    R = np.tile(np.eye(3), (n, 1, 1))
-    done = np.zeros(n, bool)
+    R_el = np.empty((len(segments), 3, 3))
+    R = np.tile(np.eye(3), (len(points), 1, 1))
     for th in np.unique(thread):
-        chain = segments[thread == th]
-        nodes = np.concatenate([chain[:1, 0], chain[:, 1]])
-        R[nodes[0]] = _first_triad(tangent[nodes[0]])
-        for prev, node in zip(nodes[:-1], nodes[1:]):
-            if not done[node]:
-                R[node] = _transport(tangent[prev], tangent[node]) @ R[prev]
-                done[node] = True
-        done[nodes[0]] = True
-    return R
+        chain = np.flatnonzero(thread == th)
+        R_el[chain[0]] = _first_triad(d[chain[0]])
+        R[segments[chain[0], 0]] = R_el[chain[0]]
+        for prev, e in zip(chain[:-1], chain[1:]):
+            R_el[e] = _transport(d[prev], d[e]) @ R_el[prev]
+        R[segments[chain, 1]] = R_el[chain]
+    offset_R = np.einsum("enji,ejk->enik", R[segments], R_el)
+    return R, offset_R
 
 
 def _first_triad(t: FloatArray) -> FloatArray:
