@@ -222,6 +222,9 @@ def _run_one(scene, out: Path | None, args: argparse.Namespace, movie: bool):  #
         return EXIT_BAD_INPUT, None
     warnings = list(result.summary.get("warnings", [])) + draw_run_figures(result, scene.output,
                                                                            movie=movie)
+    if args.threads is not None and result.summary.get("threads", args.threads) < args.threads:
+        warnings.append(f"--threads {args.threads}: ran on {result.summary['threads']}, the "
+                        "threads numba may use here (NUMBA_NUM_THREADS, else the cores)")
     for w in warnings:
         print(f"rodnet: warning: {w}", file=sys.stderr)
     _report(result)

@@ -406,7 +406,8 @@ class StopRequest:
     """SIGTERM or Ctrl-C (SIGINT) noted by its handler and acted on by :meth:`check` between
     steps: an exception raised by a signal handler inside the calls of the compiled loops can
     leave them broken (measured: segmentation faults after SIGTERM), so the run stops where
-    the integrator reports progress or a frame. A second Ctrl-C stops at once."""
+    the integrator reports progress or a frame. A second Ctrl-C raises at once where Python
+    runs (not inside a compiled explicit frame interval)."""
 
     def __init__(self) -> None:
         self.signal_name: str | None = None

@@ -87,9 +87,15 @@ def apply_overrides(data: dict[str, Any], overrides: typing.Sequence[str]) -> di
                                      f"index must be 0..{len(node) - 1} in this scene")
                 node = node[int(part)]
             else:
+                if parts[i + 1].isdigit() and not isinstance(node.get(part), list):
+                    raise SceneError(key, value, f"indexes [[{part}]], which this scene does "
+                                     "not have: add the table to the scene file")
                 node = node.setdefault(part, {})
+        if isinstance(node, list):
+            raise SceneError(key, value, f"names an array of tables: give the entry's index, "
+                             f"as in {'.'.join(parts[:-1])}[0].{parts[-1]}")
         if not isinstance(node, dict):
-            raise SceneError(key, raw, "names no table of the scene")
+            raise SceneError(key, value, "names no table of the scene")
         node[parts[-1]] = value
     return data
 

@@ -112,6 +112,18 @@ def test_compile_time_is_the_compiling_inside_the_timed_run(tmp_path: Path, monk
     assert "(0.6 s of it compiling kernels" in capsys.readouterr().out
 
 
+def test_more_threads_than_numba_may_use_is_said(tmp_path: Path, capsys) -> None:
+    """``--threads`` beyond numba's pool (NUMBA_NUM_THREADS, else the cores) runs on the pool
+    and says so."""
+    from rodnet.kernels.threads import available
+
+    scene = tmp_path / "scene.toml"
+    scene.write_text(small_net_toml(duration=0.05))
+    asked = available() + 1
+    assert main(["run", str(scene), "-o", str(tmp_path / "o"), "--threads", str(asked)]) == 0
+    assert f"--threads {asked}: ran on {available()}" in capsys.readouterr().err
+
+
 def test_cli_failed_run_exit_status(tmp_path: Path, monkeypatch) -> None:
     real = LumpedModel.stable_step
     monkeypatch.setattr(LumpedModel, "stable_step",

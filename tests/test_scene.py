@@ -52,6 +52,10 @@ def test_bad_values_are_named(override: str, key: str, allowed: str) -> None:
     ("net.direction=[0, nan, 1]", "net.direction[1] = nan: must be a finite number"),
     ("materials[3].density=1.0", "materials[3] = 3: index must be 0..0"),
     ("simulation.gravity=-9.81", "simulation.gravity = -9.81: must be an array of 3 numbers"),
+    ("materials.density=1000", "materials.density = 1000: names an array of tables: give the "
+                               "entry's index, as in materials[0].density"),
+    ("rods[0].elements=5", "rods[0].elements = 5: indexes [[rods]], which this scene does not "
+                           "have"),
 ])
 def test_bad_values_are_shown_as_a_scene_writes_them(override: str, message: str) -> None:
     """The value in a message is TOML (true, not Python's True), and an array's bad component

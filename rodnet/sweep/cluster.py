@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from rodnet.errors import SceneError
+from rodnet.io.results import output_directory
 from rodnet.run import Terminated
 from rodnet.run import run as run_scene
 from rodnet.scene import scene_from_toml
@@ -108,6 +109,7 @@ def execute(sweep: Sweep, directory: str | Path, *, workers: int | None = None,
         raise SceneError("--workers", workers, "sizes the local cluster; with --scheduler the "
                          "workers of that cluster run the sweep")
     done = complete(sweep, directory)
+    output_directory(directory, "-o (sweep folder)")
     todo = [r for r in sweep.runs if r.index not in done]
     where = f"the dask scheduler at {scheduler}" if scheduler else \
         f"{local_workers(workers)} local workers"

@@ -122,6 +122,20 @@ def test_a_bad_value_refuses_the_whole_sweep(tmp_path: Path, capsys: pytest.Capt
     assert not out.exists()
 
 
+def test_a_folder_that_cannot_be_made_is_bad_input(tmp_path: Path,
+                                                  capsys: pytest.CaptureFixture) -> None:
+    """A sweep folder below a file: the same refusal (exit 2, naming -o) as ``rodnet run``,
+    before any worker starts (it was a traceback and exit 1)."""
+    scene = tmp_path / "net.toml"
+    scene.write_text(small_net_toml(duration=0.3))
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    assert main(["sweep", str(scene), "-o", str(blocker / "out"),
+                 "--vary", "net.launch_speed=8,10"]) == EXIT_BAD_INPUT
+    err = capsys.readouterr().err
+    assert "-o (sweep folder)" in err and "cannot be created" in err and "Traceback" not in err
+
+
 def test_an_exception_in_a_worker_is_a_row(swept, tmp_path: Path,
                                            capsys: pytest.CaptureFixture) -> None:
     """A run folder replaced by a file: the worker's task raises on it; the other runs stay."""
