@@ -63,7 +63,7 @@ def _parser() -> argparse.ArgumentParser:
     swp = sub.add_parser("sweep", help="run a scene over a grid or Latin hypercube of keys "
                          "on a dask cluster (docs/sweeps.md)")
     swp.add_argument("scene", type=Path, help="scene TOML file")
-    swp.add_argument("-o", "--output", type=Path, required=True,
+    swp.add_argument("-o", "--output", type=_directory, required=True,
                      help="the sweep's folder (sweep.csv, sweep.json, runs/NNNN/); run again "
                      "to resume")
     swp.add_argument("--vary", action="append", default=[], metavar="KEY=V1,V2,...|KEY=LOW:HIGH",
@@ -99,7 +99,7 @@ def _parser() -> argparse.ArgumentParser:
     comp.add_argument("--processes", type=_positive_int, default=None, metavar="N",
                       help="worker processes (default: two on a machine with two cores or more)")
     for p in (run, demo):
-        p.add_argument("-o", "--output", type=Path, default=None,
+        p.add_argument("-o", "--output", type=_directory, default=None,
                        help="output directory (default: the scene's output.directory)")
         p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                        help="override a scene key, e.g. --set simulation.dt=5e-4 (repeatable)")
@@ -108,6 +108,14 @@ def _parser() -> argparse.ArgumentParser:
                        help="threads of the compiled loops (default: one for small problems, "
                        "every core, or NUMBA_NUM_THREADS, from 150 elements on; 1 on a shared machine)")
     return parser
+
+
+def _directory(text: str) -> Path:
+    """A directory path, not empty (an argparse type: Path("") would be the working directory)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("is empty: name a directory (\".\" for the working "
+                                         "directory)")
+    return Path(text)
 
 
 def _positive_int(text: str) -> int:

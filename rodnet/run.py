@@ -382,6 +382,7 @@ def run(scene: Scene, directory: str | Path | None = None, *, progress: bool | N
             arrays.update(_inertias(p))
             summary = _summary(p, arrays, stats, status, message, wall, recorder.monitors)
             summary["threads"] = n_threads
+            summary["scene"]["output"]["directory"] = str(out)   # -o, where it was given
             summary["compile_time_s"] = compiled
             if stopped_by is not None:
                 summary["signal"] = stopped_by

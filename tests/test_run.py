@@ -124,6 +124,20 @@ def test_more_threads_than_numba_may_use_is_said(tmp_path: Path, capsys) -> None
     assert f"--threads {asked}: ran on {available()}" in capsys.readouterr().err
 
 
+def test_an_empty_output_directory_is_refused(tmp_path: Path, monkeypatch, capsys) -> None:
+    """``-o ''`` or ``output.directory = ""`` would write into the working directory: both are
+    refused (exit 2), and nothing is written there."""
+    monkeypatch.chdir(tmp_path)
+    scene = tmp_path / "scene.toml"
+    scene.write_text(small_net_toml(duration=0.05))
+    with pytest.raises(SystemExit) as info:
+        main(["run", str(scene), "-o", ""])
+    assert info.value.code == 2 and "is empty" in capsys.readouterr().err
+    assert main(["run", str(scene), "--set", 'output.directory=""']) == 2
+    assert "output.directory = '': must be a non-empty path" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["scene.toml"]
+
+
 def test_cli_failed_run_exit_status(tmp_path: Path, monkeypatch) -> None:
     real = LumpedModel.stable_step
     monkeypatch.setattr(LumpedModel, "stable_step",

@@ -20,6 +20,9 @@ def output_directory(path: str | Path, key: str = "output.directory") -> Path:
     """Create the output directory ``path`` (and its parents) or raise :class:`SceneError`
     naming ``key`` when it cannot be used: a file of that name, a parent that is a file, no
     permission to write there."""
+    if not str(path).strip():
+        raise SceneError(key, str(path), "is empty: name a directory for the results (\".\" "
+                         "for the working directory)")
     path = Path(path)
     if path.exists() and not path.is_dir():
         raise SceneError(key, str(path), "names an existing file, not a directory: choose a "
