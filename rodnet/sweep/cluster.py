@@ -135,6 +135,12 @@ def execute(sweep: Sweep, directory: str | Path, *, workers: int | None = None,
         bar.close()
         if client is not None:
             _close(client, cluster)
+    if stopped is not None:   # a run that finished after the stop has its summary on disk
+        on_disk = complete(sweep, directory)
+        for r in sweep.runs:
+            if rows[r.index]["status"] == "pending" and r.index in on_disk:
+                rows[r.index] = row(sweep, r, on_disk[r.index])
+        write_table(sweep, directory, list(rows.values()))
     if stopped is None and (todo or not any(directory.glob("sweep_*.png"))):
         from rodnet.viz.sweep_plots import plot_sweep   # (drawn again only when a run ran)
 
