@@ -138,6 +138,21 @@ def test_an_empty_output_directory_is_refused(tmp_path: Path, monkeypatch, capsy
     assert sorted(p.name for p in tmp_path.iterdir()) == ["scene.toml"]
 
 
+def test_a_moment_along_a_free_twist_is_named(tmp_path: Path) -> None:
+    """A rod clamped but for its twist (r1), a static moment about its axis: no equilibrium.
+    The run fails (it does not hang or return a state) and the message names the free twist
+    as one of the causes."""
+    from tests.validation.test_statics import RIGHT_ANGLE_FRAME
+
+    scene = (RIGHT_ANGLE_FRAME.format(elements=4)
+             .replace(", [1.0, 1.0, 0.0]]", "]")
+             .replace('fix = "clamp"', 'dofs = ["x", "y", "z", "r2", "r3"]')
+             .replace("force = [0.0, 0.0, -1.0e-4]", "moment = [0.01, 0.0, 0.0]"))
+    r = run(scene_from_toml(scene), tmp_path, progress=False)
+    assert r.status == "failed" and "singular" in r.message
+    assert "no support holds its twist r1" in r.message
+
+
 def test_cli_failed_run_exit_status(tmp_path: Path, monkeypatch) -> None:
     real = LumpedModel.stable_step
     monkeypatch.setattr(LumpedModel, "stable_step",

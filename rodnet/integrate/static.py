@@ -341,5 +341,7 @@ def _static_increment(system: System, q_start: Configuration, load: float, optio
                   if getattr(system, "contact", None) is not None else "")
         raise SimulationFailed(
             "the static tangent stiffness is singular: the structure is not supported against "
-            "rigid motion (add [[supports]]) or a DOF has no stiffness" + bodies)
+            "rigid motion (add [[supports]]), or a load acts along a motion nothing resists "
+            "(a moment about a straight rod's axis when no support holds its twist r1; a "
+            "slack thread pulled sideways), or a DOF has no stiffness" + bodies)
     return moved(result.u), result
