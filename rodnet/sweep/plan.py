@@ -115,6 +115,9 @@ def plan(scene_path: str | Path, vary: Sequence[str], sets: Sequence[str] = (),
     if repeated:
         raise SceneError("--vary", repeated, "each key may be varied once")
     fixed = {s.partition("=")[0].strip() for s in sets}
+    if "output.directory" in fixed | set(keys):
+        raise SceneError("--vary" if "output.directory" in keys else "--set", "output.directory",
+                         "is the sweep's to choose: every run writes to runs/NNNN of -o")
     if fixed & set(keys):
         key = sorted(fixed & set(keys))[0]
         raise SceneError("--set", key, "is also varied (--vary): set it or vary it, not both")

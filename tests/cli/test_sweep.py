@@ -120,6 +120,9 @@ def test_a_bad_value_refuses_the_whole_sweep(tmp_path: Path, capsys: pytest.Capt
     err = capsys.readouterr().err
     assert "net.packing = 1.5" in err and "must be in (0, 1]" in err and "Traceback" not in err
     assert not out.exists()
+    assert main(["sweep", str(scene), "-o", str(out), "--vary", "output.directory=a,b"]) \
+        == EXIT_BAD_INPUT
+    assert "runs/NNNN" in capsys.readouterr().err and not out.exists()
 
 
 def test_a_folder_that_cannot_be_made_is_bad_input(tmp_path: Path,
