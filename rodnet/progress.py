@@ -56,25 +56,31 @@ class Progress:
                 self.next_fraction += LOG_FRACTION
             self.last_draw = now
             left = wall * (1.0 - fraction) / fraction if fraction > 0 else float("nan")
-            self.stream.write(f"rodnet: t = {t:.4g} of {self.duration:.4g} s ({100 * fraction:.0f} %), "
-                              f"{stats.steps} steps, dt = {dt:.2e} s, wall {wall:.0f} s, "
-                              f"about {left:.0f} s left\n")
-            self.stream.flush()
+            self._write(f"rodnet: t = {t:.4g} of {self.duration:.4g} s ({100 * fraction:.0f} %), "
+                        f"{stats.steps} steps, dt = {dt:.2e} s, wall {wall:.0f} s, "
+                        f"about {left:.0f} s left\n")
             return
         if now - self.last_draw < 0.1 and t < self.duration:
             return
         self.last_draw = now
         bar = "#" * int(30 * fraction) + "-" * (30 - int(30 * fraction))
         speed = t / wall if wall > 0 else 0.0
-        self.stream.write(f"\r[{bar}] t = {t:.4g}/{self.duration:.4g} s  dt = {dt:.2e} s  "
-                          f"steps {stats.steps}  {speed:.3g} s simulated per s wall ")
-        self.stream.flush()
+        self._write(f"\r[{bar}] t = {t:.4g}/{self.duration:.4g} s  dt = {dt:.2e} s  "
+                    f"steps {stats.steps}  {speed:.3g} s simulated per s wall ")
 
     def close(self) -> None:
         """End the progress line."""
         if self.mode == "bar":
-            self.stream.write("\n")
+            self._write("\n")
+
+    def _write(self, text: str) -> None:
+        """Write and flush; a stream that can no longer be written (a closed pipe: `rodnet
+        run ... 2>&1 | head`) silences the progress instead of stopping the run."""
+        try:
+            self.stream.write(text)
             self.stream.flush()
+        except (OSError, ValueError):
+            self.mode, self.enabled = "off", False
 
 
 class RunsProgress:
@@ -162,5 +168,8 @@ class RunsProgress:
             self._write("\n")
 
     def _write(self, text: str) -> None:
-        self.stream.write(text)
-        self.stream.flush()
+        try:
+            self.stream.write(text)
+            self.stream.flush()
+        except (OSError, ValueError):   # a closed pipe: the sweep goes on without its bar
+            self.mode = "off"

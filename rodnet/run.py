@@ -372,6 +372,9 @@ def run(scene: Scene, directory: str | Path | None = None, *, progress: bool | N
             status = "interrupted"
             message = (f"interrupted by {'SIGTERM' if stopped_by == 'SIGTERM' else 'Ctrl-C (SIGINT)'}"
                        "; the frames computed so far are kept")
+        except Exception as exc:   # not the physics (a full disk ...): kept, said, raised again
+            status, message = "failed", f"stopped by an error: {type(exc).__name__}: {exc}"
+            raise
         finally:
             stop.armed = False
             bar.close()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import json
 import subprocess
 import sys
@@ -11,6 +12,7 @@ import numpy as np
 import pytest
 
 from rodnet.cli import main
+from rodnet.integrate.frames import StepStats
 from rodnet.models.lumped import LumpedModel
 from rodnet.io.recorder import Recorder
 from rodnet.run import prepare, run
@@ -151,6 +153,44 @@ def test_a_moment_along_a_free_twist_is_named(tmp_path: Path) -> None:
     r = run(scene_from_toml(scene), tmp_path, progress=False)
     assert r.status == "failed" and "singular" in r.message
     assert "no support holds its twist r1" in r.message
+
+
+def test_an_error_outside_the_physics_keeps_the_frames_and_says_failed(tmp_path: Path,
+                                                                        monkeypatch) -> None:
+    """An exception that is not the simulation's (a full disk while writing a frame): the
+    frames before it are written, summary.json says failed and why, and the error is raised
+    (a run had said ok for results cut short)."""
+    original = Recorder.__call__
+
+    def full_disk_on_fourth_frame(self, t, state):
+        if len(self.time) == 3:
+            raise OSError(28, "No space left on device")
+        original(self, t, state)
+
+    monkeypatch.setattr(Recorder, "__call__", full_disk_on_fourth_frame)
+    with pytest.raises(OSError):
+        run(scene_from_toml(small_net_toml(duration=0.2)), tmp_path, progress=False)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["status"] == "failed" and "No space left on device" in summary["message"]
+    assert len(np.load(tmp_path / "result.npz")["time"]) == 3
+
+
+def test_a_closed_progress_stream_does_not_stop_the_run() -> None:
+    """``rodnet run ... 2>&1 | head -2``: once the pipe is closed the progress lines are
+    dropped (the run goes on) instead of raising into the integrator, which had ended the run
+    early."""
+    from rodnet.progress import Progress
+
+    class ClosedPipe(io.StringIO):
+        def write(self, text: str) -> int:
+            raise BrokenPipeError(32, "Broken pipe")
+
+    for enabled in (True, None):          # the bar, and the log lines of a pipe
+        bar = Progress(1.0, enabled=enabled, stream=ClosedPipe())
+        bar(0.5, 1e-3, StepStats())
+        bar(1.0, 1e-3, StepStats())
+        bar.close()
+        assert not bar.enabled
 
 
 def test_cli_failed_run_exit_status(tmp_path: Path, monkeypatch) -> None:
