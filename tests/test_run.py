@@ -54,6 +54,19 @@ def test_vtk_series_reads_back_in_pyvista(tmp_path: Path) -> None:
     assert data["tension"][50].max() > 0
 
 
+def test_the_series_times_are_the_results_times(tmp_path: Path) -> None:
+    """result.pvd holds each frame's time as result.npz does, to the last bit, so a frame can
+    be picked by the time summary.json gives (a frame interval of 0.035 s makes times such as
+    0.24500000000000002, which 9 digits had rounded and pyvista then refused)."""
+    pv = pytest.importorskip("pyvista")
+    text = small_net_toml(duration=0.3, vtk="true").replace("frame_interval = 0.01",
+                                                            "frame_interval = 0.035")
+    r = run(scene_from_toml(text), tmp_path, progress=False)
+    reader = pv.get_reader(str(tmp_path / "result.pvd"))
+    assert list(reader.time_values) == [float(t) for t in r.arrays["time"]]
+    reader.set_active_time_value(r.summary["metrics"]["time_of_max_mouth_area"])
+
+
 def test_divergence_stops_with_message_and_keeps_frames(tmp_path: Path, monkeypatch) -> None:
     # A stability limit reported 20 times too large lets the step through the checks; the run
     # then blows up, and must say so and keep what it computed: the energy guard (nothing does

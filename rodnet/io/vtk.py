@@ -193,9 +193,9 @@ class VtkSeries:
         lines = ['<?xml version="1.0"?>',
                  '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
                  "  <Collection>"]
-        lines += [f'    <DataSet timestep="{t:.9g}" group="" part="0" name={quoteattr(names[0])} '
+        lines += [f'    <DataSet timestep="{float(t)!r}" group="" part="0" name={quoteattr(names[0])} '
                   f'file={quoteattr(f)}/>' for t, f in self.entries]
-        lines += [f'    <DataSet timestep="{t:.9g}" group="" part="{part}" '
+        lines += [f'    <DataSet timestep="{float(t)!r}" group="" part="{part}" '
                   f'name={quoteattr(names[part])} file={quoteattr(f)}/>'
                   for t, part, f in self.parts]
         lines += ["  </Collection>", "</VTKFile>", ""]
