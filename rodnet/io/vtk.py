@@ -91,7 +91,8 @@ class VtkSeries:
         frame : dict
             ``positions`` (N, 3) [m] as points, ``velocities`` (N, 3) [m/s] as point data
             ``velocity``, and every per-element array (``tension`` [N], ``curvature``,
-            ``twist`` [1/m]) as cell data. With bodies, ``body_positions`` (B, 3) [m] and
+            ``twist`` [1/m]) as cell data; for rods the section triads ``d1, d2, d3`` of
+            ``rotations`` (N, 4) as point data. With bodies, ``body_positions`` (B, 3) [m] and
             ``body_rotations`` (B, 4) (quaternions w, x, y, z, body to world) place the
             surfaces, and the :data:`BODY_STATE_KEYS` it holds are written on them.
         bodies : mapping, optional
@@ -110,6 +111,9 @@ class VtkSeries:
             cell_data["thread_id"] = [self.thread]
         point_data = {"velocity": np.asarray(frame["velocities"], float),
                       "node_id": np.arange(len(positions), dtype=np.int64)}
+        if len(frame.get("rotations", ())) == len(positions):   # rods: the section triads
+            triad = quat_to_matrix(np.asarray(frame["rotations"], float))
+            point_data.update(d1=triad[:, :, 0], d2=triad[:, :, 1], d3=triad[:, :, 2])
         mesh = meshio.Mesh(positions, self.cells, point_data=point_data, cell_data=cell_data)
         meshio.write(self.directory / name, mesh, file_format="vtu", compression=None)
         self._track(positions, frame.get("tension"))
