@@ -478,7 +478,7 @@ frame_interval = 0.001
 
 def test_the_vtk_frames_carry_the_rods_section_triads(tmp_path: Path) -> None:
     """A rod along x starts with d1 = x, d2 = z, d3 = -y (rod_model.md, Node triads); every
-    frame's d1, d2, d3 are the columns of its ``rotations`` in result.npz."""
+    frame's d1, d2, d3 are the columns of its ``rotations`` in result.npz (single precision)."""
     meshio = pytest.importorskip("meshio")
     from rodnet.kernels.so3 import quat_to_matrix
 
@@ -487,13 +487,13 @@ def test_the_vtk_frames_carry_the_rods_section_triads(tmp_path: Path) -> None:
     r = run(scene_from_toml(text), tmp_path, progress=False)
     first = meshio.read(tmp_path / "vtk" / "frame_00000.vtu")
     np.testing.assert_allclose(first.point_data["d1"], np.tile([1.0, 0.0, 0.0], (11, 1)),
-                               atol=1e-15)
+                               atol=1e-7)
     np.testing.assert_allclose(first.point_data["d3"], np.tile([0.0, -1.0, 0.0], (11, 1)),
-                               atol=1e-15)
+                               atol=1e-7)
     last = meshio.read(tmp_path / "vtk" / f"frame_{len(r.arrays['time']) - 1:05d}.vtu")
     triads = quat_to_matrix(r.arrays["rotations"][-1])
     for k, name in enumerate(("d1", "d2", "d3")):
-        np.testing.assert_allclose(last.point_data[name], triads[:, :, k], atol=1e-15)
+        np.testing.assert_allclose(last.point_data[name], triads[:, :, k], atol=1e-7)
     assert np.abs(triads[:, :, 0] - [1.0, 0.0, 0.0]).max() > 1e-3     # the rod has swung
 
 

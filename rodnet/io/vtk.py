@@ -111,9 +111,9 @@ class VtkSeries:
             cell_data["thread_id"] = [self.thread]
         point_data = {"velocity": np.asarray(frame["velocities"], float),
                       "node_id": np.arange(len(positions), dtype=np.int64)}
-        if len(frame.get("rotations", ())) == len(positions):   # rods: the section triads
-            triad = quat_to_matrix(np.asarray(frame["rotations"], float))
-            point_data.update(d1=triad[:, :, 0], d2=triad[:, :, 1], d3=triad[:, :, 2])
+        if len(frame.get("rotations", ())) == len(positions):   # rods: the section triads,
+            triad = quat_to_matrix(np.asarray(frame["rotations"], float)).astype(np.float32)
+            point_data.update(d1=triad[:, :, 0], d2=triad[:, :, 1], d3=triad[:, :, 2])  # to draw
         mesh = meshio.Mesh(positions, self.cells, point_data=point_data, cell_data=cell_data)
         meshio.write(self.directory / name, mesh, file_format="vtu", compression=None)
         self._track(positions, frame.get("tension"))
