@@ -74,12 +74,7 @@ class Progress:
             self._write("\n")
 
     def _write(self, text: str) -> None:
-        """Write and flush; a stream that can no longer be written (a closed pipe: `rodnet
-        run ... 2>&1 | head`) silences the progress instead of stopping the run."""
-        try:
-            self.stream.write(text)
-            self.stream.flush()
-        except (OSError, ValueError):
+        if not _written(self.stream, text):
             self.mode, self.enabled = "off", False
 
 
@@ -168,8 +163,17 @@ class RunsProgress:
             self._write("\n")
 
     def _write(self, text: str) -> None:
-        try:
-            self.stream.write(text)
-            self.stream.flush()
-        except (OSError, ValueError):   # a closed pipe: the sweep goes on without its bar
+        if not _written(self.stream, text):
             self.mode = "off"
+
+
+def _written(stream: TextIO, text: str) -> bool:
+    """Write and flush ``text``; False when ``stream`` can no longer be written (a closed pipe:
+    ``rodnet run ... 2>&1 | head``), which silences a progress report instead of stopping the
+    run."""
+    try:
+        stream.write(text)
+        stream.flush()
+    except (OSError, ValueError):
+        return False
+    return True

@@ -111,8 +111,9 @@ def execute(sweep: Sweep, directory: str | Path, *, workers: int | None = None,
     done = complete(sweep, directory)
     output_directory(directory, "-o (sweep folder)")
     todo = [r for r in sweep.runs if r.index not in done]
+    n_local = local_workers(workers)
     where = f"the dask scheduler at {scheduler}" if scheduler else \
-        f"{local_workers(workers)} local worker{'s' if local_workers(workers) != 1 else ''}"
+        f"{n_local} local worker{'s' if n_local != 1 else ''}"
     print(f"rodnet: sweep of {len(sweep.runs)} runs: {len(done)} complete, {len(todo)} to run"
           + (f" on {where}" if todo else ""), file=sys.stderr, flush=True)
     started = time.perf_counter()
