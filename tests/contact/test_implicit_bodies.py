@@ -146,19 +146,24 @@ def test_cord_hitting_a_free_box_conserves_linear_and_angular_momentum() -> None
 def test_implicit_capture_of_a_free_box_agrees_with_the_explicit_run() -> None:
     """The cord-and-box throw with friction and contact damping: BDF2 and generalized-alpha at
     a fixed 2e-4 s give the box's velocity of an explicit run at safety 0.2 within 5 % of its
-    velocity change, and the linear momentum exactly. (The explicit run at its default safety
-    0.5 is itself 20 % off in this contact-stiff throw.)"""
+    velocity change through the first two hits (0.06 and 0.14 s; measured: 1.1 and 1.3 %), and the
+    linear momentum exactly over the whole run. The third contact, from 0.18 s, is
+    step-sensitive: the box's final velocity jumps between two outcomes (v_z about 0.049 and
+    0.061 m/s) as the steps are refined, in both schemes (explicit safety 0.2 to 0.0125, BDF2
+    2e-4 to 1.25e-5 s), so it is not compared. (The explicit run at its default safety 0.5 is
+    itself 20 % off in this contact-stiff throw.)"""
     text = CORD_AND_BOX.replace("damping = 0.0", "damping = 0.2").replace(
         "friction = 0.0", "friction = 0.3")
     explicit = run_ok(text, ["simulation.integrator=explicit", "simulation.adaptive=true",
                              "simulation.explicit_safety=0.2"])
-    v_explicit = explicit.arrays["body_velocities"][-1, 0]
+    frame = int(np.argmin(np.abs(explicit.arrays["time"] - 0.17)))   # after the second hit
+    v_explicit = explicit.arrays["body_velocities"][frame, 0]
     change = np.linalg.norm(v_explicit - explicit.arrays["body_velocities"][0, 0])
     assert change > 0.02
     for integrator in ("bdf2", "generalized-alpha"):
         r = run_ok(text, ["simulation.adaptive=false", "simulation.dt=2e-4",
                           f"simulation.integrator={integrator}"])
-        v = r.arrays["body_velocities"][-1, 0]
+        v = r.arrays["body_velocities"][frame, 0]
         assert np.linalg.norm(v - v_explicit) <= 0.05 * change, (integrator, v, v_explicit)
         linear, _ = momenta(r, text)
         assert np.abs(linear - linear[0]).max() <= 1e-9 * np.linalg.norm(linear[0])
