@@ -132,6 +132,10 @@ def test_first_steps_keep_elements_the_right_way_round(knots: str) -> None:
 
 @pytest.mark.slow
 def test_rigid_knot_net_runs_0_3_s_in_bounded_time() -> None:
+    """The reference net with rigid knots, 0.3 s of implicit steps: finite, no compressive
+    tension, no element turned inside out. The wall-time budget only guards against a solve
+    that stalls; it is not a speed measure (speed is in validation/benchmarks): on the shared
+    2-core machine the 0.3 s take about two minutes, and a budget of 120 s failed at 0.289 s."""
     worst = {"axial": 0.0, "tension": 0.0, "finite": True}
 
     def check(t, model, q, v) -> None:
@@ -140,5 +144,5 @@ def test_rigid_knot_net_runs_0_3_s_in_bounded_time() -> None:
         worst["tension"] = min(worst["tension"], float(stress[:, 0].min()))
         worst["finite"] &= bool(np.isfinite(q.x).all())
 
-    integrate_net(net("rigid", 2), check, budget=120.0)
+    integrate_net(net("rigid", 2), check, budget=900.0)
     assert worst["finite"] and worst["tension"] >= 0.0 and worst["axial"] > -1.0
