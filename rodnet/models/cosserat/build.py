@@ -11,7 +11,7 @@ from rodnet.config import Scene
 from rodnet.errors import SceneError
 from rodnet.kernels import so3
 from rodnet.kernels.cosserat_strain import reference_strains
-from rodnet.models.cosserat.geometry import (align_quaternion_signs, corner_triads,
+from rodnet.models.cosserat.geometry import (corner_triads, oriented_ends,
                                              residual_bending_shear, support_dofs)
 from rodnet.models.cosserat.model import CosseratModel
 from rodnet.models.cosserat.net import build_cosserat_net
@@ -47,17 +47,10 @@ def build_cosserat(scene: Scene, structure: Structure) -> tuple[CosseratModel, C
     seg = structure.segments
     n = structure.n_nodes
     node_mass = structure.point_mass.copy()
-    R0, offset_R = corner_triads(structure.rest_positions, seg, structure.thread)
-    rotary = np.zeros((n, 3))
-    inertia_end = 0.5 * le[:, None] * rho_i[:, None] * np.array([2.0, 1.0, 1.0])
     for end in (0, 1):
         np.add.at(node_mass, seg[:, end], 0.5 * rho_a * le)
-        in_node = np.einsum("eij,ej,ekj->eik", offset_R[:, end], inertia_end, offset_R[:, end])
-        np.add.at(rotary, seg[:, end], np.diagonal(in_node, axis1=1, axis2=2))
-    corners = not np.allclose(offset_R, np.eye(3), atol=1e-14)
-    quat0, end_offset = align_quaternion_signs(
-        so3.quat_from_matrix(R0), seg, so3.quat_from_matrix(offset_R) if corners else None)
-    ends0 = quat0[seg] if end_offset is None else so3.quat_multiply(quat0[seg], end_offset)
+    R0, offset_R = corner_triads(structure.rest_positions, seg, structure.thread)
+    quat0, end_offset, ends0, rotary = oriented_ends(R0, seg, offset_R, le, rho_i)
     free = np.ones(6 * n, bool)
     for i, s in enumerate(scene.supports):
         node = structure.node(s.node, f"supports[{i}].node")

@@ -51,6 +51,39 @@ def corner_triads(points: FloatArray, segments: NDArray[np.int64], thread: NDArr
     return R, offset_R
 
 
+def oriented_ends(R_nodes: FloatArray, rot_nodes: NDArray[np.int64], offset_R: FloatArray,
+                  rest_length: FloatArray, rho_i: FloatArray
+                  ) -> tuple[FloatArray, FloatArray | None, FloatArray, FloatArray]:
+    """What rods and nets build alike from their rotation nodes' triads ``R_nodes`` (R, 3, 3)
+    and each element end's offset ``offset_R`` (E, 2, 3, 3) in its node's frame.
+
+    Returns
+    -------
+    quat_nodes : (R, 4) float
+        The nodes' quaternions, signed by :func:`align_quaternion_signs`.
+    end_offset : (E, 2, 4) float or None
+        The ends' offsets as quaternions; None where every one is the identity.
+    quat_ends : (E, 2, 4) float
+        The element ends' quaternions ``q_node o offset``.
+    rotary : (R, 3) float
+        The nodes' lumped rotary inertia (C36)-(C38): each end's ``Le/2 diag(2 rho I, rho I,
+        rho I)`` turned by its offset into its node's triad, the diagonal kept.
+    """
+    end_offset = None if np.allclose(offset_R, np.eye(3), atol=1e-14) else \
+        so3.quat_from_matrix(offset_R)
+    rotary = np.zeros((len(R_nodes), 3))
+    inertia_end = 0.5 * rest_length[:, None] * rho_i[:, None] * np.array([2.0, 1.0, 1.0])
+    for end in (0, 1):
+        in_node = np.einsum("eij,ej,ekj->eik", offset_R[:, end], inertia_end, offset_R[:, end])
+        np.add.at(rotary, rot_nodes[:, end], np.diagonal(in_node, axis1=1, axis2=2))
+    quat_nodes, end_offset = align_quaternion_signs(so3.quat_from_matrix(R_nodes), rot_nodes,
+                                                    end_offset)
+    quat_ends = quat_nodes[rot_nodes]
+    if end_offset is not None:
+        quat_ends = so3.quat_multiply(quat_ends, end_offset)
+    return quat_nodes, end_offset, quat_ends, rotary
+
+
 def _first_triad(t: FloatArray) -> FloatArray:
     ref = np.array([0.0, 0.0, 1.0]) if abs(t[2]) < 0.9 else np.array([0.0, 1.0, 0.0])
     d2 = ref - (ref @ t) * t

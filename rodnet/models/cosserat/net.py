@@ -31,9 +31,8 @@ from numpy.typing import NDArray
 
 from rodnet.config import Scene
 from rodnet.errors import SceneError
-from rodnet.kernels import so3
 from rodnet.kernels.cosserat_strain import reference_strains, strain_matrix
-from rodnet.models.cosserat.geometry import align_quaternion_signs, support_dofs
+from rodnet.models.cosserat.geometry import oriented_ends, support_dofs
 from rodnet.models.cosserat.model import CosseratModel
 from rodnet.models.loads import constant_gravity, dead_loads
 from rodnet.state import Configuration
@@ -83,23 +82,11 @@ def build_cosserat_net(scene: Scene, structure: Structure, section: dict[str, Fl
                 rot_nodes[e, end] = node_rotation[node]
     R_nodes = np.array(rot_R)
     offset_R = np.einsum("enji,enjk->enik", R_nodes[rot_nodes], thread_R[:, None].repeat(2, axis=1))
-    end_offset = so3.quat_from_matrix(offset_R)
-    if np.allclose(offset_R, np.eye(3), atol=1e-14):
-        end_offset = None
-
+    quat_nodes, end_offset, quat_ends, rotary = oriented_ends(R_nodes, rot_nodes, offset_R, le,
+                                                              section["rho_i"])
     node_mass = structure.point_mass.copy()
-    rotary = np.zeros((len(R_nodes), 3))
-    inertia_end = 0.5 * le[:, None] * section["rho_i"][:, None] * np.array([2.0, 1.0, 1.0])
     for end in (0, 1):
         np.add.at(node_mass, seg[:, end], 0.5 * section["rho_a"] * le)
-        in_node = np.einsum("eij,ej,ekj->eik", offset_R[:, end], inertia_end, offset_R[:, end])
-        np.add.at(rotary, rot_nodes[:, end], np.diagonal(in_node, axis1=1, axis2=2))
-
-    quat_nodes, end_offset = align_quaternion_signs(so3.quat_from_matrix(R_nodes), rot_nodes,
-                                                    end_offset)
-    quat_ends = quat_nodes[rot_nodes]
-    if end_offset is not None:
-        quat_ends = so3.quat_multiply(quat_ends, end_offset)
     n_rot = len(R_nodes)
     free = np.ones(3 * (n_nodes + n_rot), bool)
     for i, s in enumerate(scene.supports):
