@@ -205,8 +205,8 @@ def _check_supported(system: ThreadSystem, structure: Structure, scene: Scene) -
 
 
 def _energy_checks(p: Prepared) -> list[FrameCheck]:
-    """The energy guard of a dynamic run whose energy nothing can raise: no loads and no
-    gravity; or, with an implicit integrator, gravity constant in time (its potential then
+    """The energy guard of a dynamic run whose energy nothing can raise: no loads (point or
+    line) and no gravity; or, with an implicit integrator, gravity constant in time (its potential then
     counts) and no free bodies (whose own weight the frames do not account for). Symplectic
     Euler's energy swings by about ``omega h / 2`` of itself on a resolved mode (a spring
     at a third of its period per step: 0.86 to 1.19 of the start, bounded), so the explicit
@@ -214,7 +214,7 @@ def _energy_checks(p: Prepared) -> list[FrameCheck]:
     guarded under gravity, where the swing is measured against the motion's small energy."""
     scene = p.scene
     sim = scene.simulation
-    if sim.type != "dynamic" or scene.loads:
+    if sim.type != "dynamic" or scene.loads or scene.line_loads:
         return []
     if not any(sim.gravity):
         return [energy_guard(growth=1.0 if scene.integrator == "explicit" else 0.1)]
@@ -458,6 +458,8 @@ def _stop_on_signals() -> Iterator[StopRequest]:
 
 def _stability_advice(p: Prepared) -> str:
     """What to change when a run turns unstable."""
+    if p.scene.integrator == "rk45":
+        return "set a smaller simulation.rtol"
     if p.scene.integrator != "explicit":
         if p.scene.simulation.adaptive:
             return ("set a smaller simulation.error_tolerance or simulation.dt_max (below the "
