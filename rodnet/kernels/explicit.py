@@ -112,7 +112,8 @@ class StepControl(NamedTuple):
     ``stable_step``: the stability limit of the threads [s] (for messages); ``blocks``: how
     many blocks of consecutive elements and nodes the loops over them take, one per thread of
     the parallel loops (:func:`march_parallel`), 1 on one thread (a block costs about half a
-    microsecond more in the nodes' update).
+    microsecond more in the nodes' update); ``undamped_step``: the stability limit without the
+    threads' Kelvin-Voigt damping [s] (for messages).
     """
 
     dt: float
@@ -123,6 +124,7 @@ class StepControl(NamedTuple):
     factor: np.ndarray
     stable_step: float
     blocks: int = 1
+    undamped_step: float = math.inf
 
 
 class Scratch(NamedTuple):

@@ -371,4 +371,5 @@ def lumped_explicit_plan(model: LumpedModel, v0: FloatArray, dt: float, adaptive
                          f"{limit:.3g} s of this scene; use dt <= {limit:.3g} "
                          f"(about half of it for accurate snap loads) or adaptive = true")
     step = safety * limit if adaptive else dt
-    return model, v0, kx.StepControl(step, step, 0.0, False, np.zeros(1), np.ones(1), limit)
+    return model, v0, kx.StepControl(step, step, 0.0, False, np.zeros(1), np.ones(1), limit,
+                                     undamped_step=model.stable_step(damped=False))

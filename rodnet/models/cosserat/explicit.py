@@ -319,9 +319,16 @@ def rod_explicit_plan(model: CosseratModel, v0: FloatArray, dt: float, adaptive:
     The start velocities are ``v0`` (n_dof,) with each rotation node's angular velocity lowered
     so that its angular momentum ``J W`` under the raised inertia is that of the unscaled model
     (C49): a start spin given to the real, nearly massless rotations does not become a flywheel.
+    The control's ``undamped_step`` is the stability limit of the same plan without the
+    Kelvin-Voigt damping (for the warning of a step the viscosity shortens).
     """
     plan = explicit_plan(model, dt, adaptive, safety, scale_rotary_inertia)
+    undamped = plan.stable_step
+    if np.any(model.tau > 0.0):  # the limit the same scene would have without its viscosity
+        undamped = explicit_plan(dataclasses.replace(model, tau=np.zeros_like(model.tau)), dt,
+                                 adaptive, safety, scale_rotary_inertia).stable_step
     v = np.array(v0, dtype=float)
     v[3 * model.n_nodes:] *= (model.rotary_inertia / plan.inertia).ravel()
-    control = StepControl(plan.dt, plan.dt, 0.0, True, *plan.control, plan.stable_step)
+    control = StepControl(plan.dt, plan.dt, 0.0, True, *plan.control, plan.stable_step,
+                          undamped_step=undamped)
     return plan.model(model), v, control
