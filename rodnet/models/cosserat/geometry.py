@@ -6,7 +6,9 @@ Rod triads (:func:`corner_triads`): ``d1`` along each element's chord, ``d2``, `
 along each rod by parallel transport from a first triad whose ``d2`` is the global z axis
 projected normal to ``d1`` (y when ``d1`` is along z); a polyline's corner joins its two elements
 rigidly through an end offset. The stress-free strains are measured from these triads, so any
-choice is stress-free; parallel transport keeps the reference twist zero.
+choice is stress-free; parallel transport keeps the reference twist zero. A corner node's own
+triad is set by the corner alone (the incoming chord and the corner's plane), so that its lumped
+rotary inertia, kept diagonal in that triad, does not depend on how the scene is oriented.
 """
 
 from __future__ import annotations
@@ -26,7 +28,11 @@ def corner_triads(points: FloatArray, segments: NDArray[np.int64], thread: NDArr
     """Triads of a polyline taken literally: each element straight with ``d1`` along its chord,
     the triad carried from element to element by the smallest rotation between their chords
     (parallel transport, so no reference twist), and a node's triad that of the element
-    ending there (the first element's at a chain's first node).
+    ending there (the first element's at a chain's first node), except at a corner of the
+    polyline: there ``d1`` is along the incoming chord ``a``, ``d3`` along ``a x b`` (``b`` the
+    outgoing chord) and ``d2 = d3 x d1``, a triad the corner's geometry alone fixes (the
+    element's own ``d2`` comes from the global z axis: the rotary inertia kept diagonal in it
+    turned with the scene's orientation, 4.8 % at a 37 degree rotation).
 
     Returns
     -------
@@ -47,6 +53,12 @@ def corner_triads(points: FloatArray, segments: NDArray[np.int64], thread: NDArr
         for prev, e in zip(chain[:-1], chain[1:]):
             R_el[e] = _transport(d[prev], d[e]) @ R_el[prev]
         R[segments[chain, 1]] = R_el[chain]
+        for prev, e in zip(chain[:-1], chain[1:]):
+            normal = np.cross(d[prev], d[e])
+            size = np.linalg.norm(normal)
+            if size > 1e-12:   # a corner
+                normal /= size
+                R[segments[prev, 1]] = np.column_stack([d[prev], np.cross(normal, d[prev]), normal])
     offset_R = np.einsum("enji,ejk->enik", R[segments], R_el)
     return R, offset_R
 
