@@ -57,8 +57,8 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
         "ratio, generalized-alpha `|beta - 1/6| dt^2 |a1 - a0|` (Zienkiewicz-Xie), midpoint "
         "`dt^2 |a1 - a0| / 12`, backward Euler `dt |v1 - v0| / 2`). A step above it is rejected; "
         "every step is resized by `0.9 (tolerance / error)^(1/(p+1))` (`p` the order), within "
-        "0.2 to 2. Not set: 3e-5 times the size of the structure (the diagonal of its stress-free "
-        "bounding box): 0.9 mm on the reference net, 30 um on a 1 m thread. Not used by `explicit`, "
+        "0.2 to 2. Not set: 3e-5 times the size of the structure (the largest distance "
+        "between two of its nodes at rest): 0.9 mm on the reference net, 30 um on a 1 m thread. Not used by `explicit`, "
         "`rk45` or fixed steps."),
     "simulation.integrator": (
         "", 'Not set: "explicit" for `model.type = "lumped"` and `"kirchhoff"`, "bdf2" '

@@ -268,8 +268,8 @@ def _newton(p: Prepared) -> NewtonOptions:
 
 
 ERROR_FRACTION = 3e-5
-"""The default ``simulation.error_tolerance`` as a fraction of the structure's size (the diagonal
-of its stress-free bounding box): 0.9 mm on the reference net, 30 um on a 1 m thread. Measured
+"""The default ``simulation.error_tolerance`` as a fraction of the structure's size (the largest
+distance between two of its nodes at rest, :attr:`rodnet.topology.Structure.size`): 0.9 mm on the reference net, 30 um on a 1 m thread. Measured
 (validation/benchmarks/results/implicit_defaults.md): the reference deployment's largest mouth
 area within 0.35 % of the converged one with cable threads (BDF2), the 1 m thread's tip within
 0.42 mm of a run at 1e-7 m; the 1.5 m thread of validation/benchmarks/thread_defaults.py up to

@@ -12,6 +12,7 @@ from __future__ import annotations
 import bisect
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
@@ -73,6 +74,17 @@ class NetLayout:
     n_threads: int                    # mesh threads + 4 corner threads
 
 
+def diameter(points: NDArray[np.float64]) -> float:
+    """The largest distance between two of ``points`` (P, 3) [m]: over the vertices of their
+    convex hull (joggled where the points are flat or on a line), or over all pairs of a few."""
+    points = np.asarray(points, dtype=float)
+    if len(points) > 256:
+        from scipy.spatial import ConvexHull
+        points = points[ConvexHull(points, qhull_options="QJ").vertices]
+    gaps = points[:, None, :] - points[None, :, :]
+    return float(np.sqrt(np.max(np.einsum("ijk,ijk->ij", gaps, gaps), initial=0.0)))
+
+
 @dataclass(frozen=True)
 class Structure:
     """Nodes and two-node segments of a scene, independent of the mechanical model.
@@ -115,10 +127,12 @@ class Structure:
     def n_nodes(self) -> int:
         return len(self.positions)
 
-    @property
+    @cached_property
     def size(self) -> float:
-        """Diagonal of the stress-free bounding box [m]."""
-        return float(np.linalg.norm(np.ptp(self.rest_positions, axis=0)))
+        """The largest distance between two nodes of the stress-free structure [m] (for a
+        straight rod its length, for a flat square net the distance between opposite corners:
+        the diagonal of the bounding box there, but unchanged when the scene is turned)."""
+        return diameter(self.rest_positions)
 
     def node(self, selector: str, key: str) -> int:
         """Node index of ``selector``; ``key`` names the scene key for the error message."""

@@ -177,7 +177,7 @@ class LumpedModel:
 
     @property
     def length_scale(self) -> float:
-        """Size of the structure [m]: the diagonal of its stress-free bounding box."""
+        """Size of the structure [m]: the largest distance between two nodes at rest."""
         return self.structure.size
 
     @property

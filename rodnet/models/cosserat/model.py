@@ -112,7 +112,7 @@ class CosseratModel:
 
     @property
     def length_scale(self) -> float:
-        """Size of the structure [m]: the diagonal of its stress-free bounding box."""
+        """Size of the structure [m]: the largest distance between two nodes at rest."""
         return self.size
 
     @property
