@@ -461,6 +461,9 @@ def _stability_advice(p: Prepared) -> str:
     if p.scene.integrator == "rk45":
         return "set a smaller simulation.rtol"
     if p.scene.integrator != "explicit":
+        if p.scene.integrator == "midpoint" and p.system.contact is not None:
+            return ("use simulation.integrator = 'bdf2': the midpoint rule is not energy-stable "
+                    "with contact (docs/contact.md)")
         if p.scene.simulation.adaptive:
             return ("set a smaller simulation.error_tolerance or simulation.dt_max (below the "
                     "period of the fastest motion that matters, such as a contact's)")
@@ -474,11 +477,17 @@ def _stability_advice(p: Prepared) -> str:
 def _inertias(p: Prepared) -> dict[str, NDArray[np.float64]]:
     """The masses the run moves: ``node_mass`` (N,) [kg] and, for rod sections,
     ``rotation_node_inertia`` (R, 3) [kg m^2] in each rotation node's material frame (explicit
-    runs: as raised by C49), so that momenta can be summed from the frames."""
+    runs: as raised by C49), so that momenta can be summed from the frames; with bodies their
+    ``body_mass`` (B,) [kg] and ``body_inertia`` (B, 3, 3) [kg m^2] about the centre of mass in
+    body axes (nan for a fixed body without a mass)."""
     out = {"node_mass": np.asarray(p.mass, dtype=float)}
     inertia = getattr(p.model, "rotary_inertia", None)
     if inertia is not None and len(inertia):
         out["rotation_node_inertia"] = np.asarray(inertia, dtype=float)
+    contact = p.system.contact
+    if contact is not None:
+        out["body_mass"] = np.asarray(contact.bodies.mass, dtype=float)
+        out["body_inertia"] = np.asarray(contact.bodies.inertia, dtype=float)
     return out
 
 
