@@ -580,7 +580,8 @@ def _warnings(p: Prepared, stats: StepStats, monitors: dict[str, float]) -> list
     a static equilibrium that is unstable (:func:`rodnet.integrate.static.unstable`);
     a rod element turned past the rotation stop (C52), where the stop's moment, not the
     section, resisted its rotation; a node held by more than one support entry; a load that
-    its node's supports take whole; a static run with rod elements turned inside out (C51);
+    its node's supports take whole; a net of rigid knots with one element per thread (shear
+    locking); a static run with rod elements turned inside out (C51);
     a fixed step longer than the frame interval; an explicit step that the threads'
     Kelvin-Voigt damping shortens more than :data:`VISCOUS_STEP_FACTOR` times.
     ``monitors``: the frames' largest values of :data:`rodnet.io.recorder.MONITORS`."""
@@ -593,6 +594,14 @@ def _warnings(p: Prepared, stats: StepStats, monitors: dict[str, float]) -> list
                 "clamped rod" for i, support in enumerate(p.scene.supports)
                 if support.dofs is None and support.fix == "clamp"]
     out += _shared_supports(p) + _loads_on_supports(p)
+    model = p.scene.model
+    if p.built.variant == "rods" and p.structure.net is not None and model.knots == "rigid" \
+            and model.elements_per_thread == 1:
+        out.append("model.knots = 'rigid' with model.elements_per_thread = 1: a thread between "
+                   "two rigid knots bends only through its one element's shear (shear locking), "
+                   "so the net resists any change of its mesh angles far too stiffly (a 5 x 5 "
+                   "net sagging under gravity: 0.063 m instead of 0.284 m); use "
+                   "elements_per_thread >= 2 or knots = 'pinned'")
     sim, interval = p.scene.simulation, p.scene.output.frame_interval
     if sim.type == "dynamic" and not sim.adaptive and sim.dt > interval * (1.0 + 1e-9):
         out.append(f"simulation.dt = {sim.dt:g} s is longer than output.frame_interval = "
