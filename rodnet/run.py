@@ -586,13 +586,16 @@ def _warnings(p: Prepared, stats: StepStats, monitors: dict[str, float]) -> list
     Kelvin-Voigt damping shortens more than :data:`VISCOUS_STEP_FACTOR` times.
     ``monitors``: the frames' largest values of :data:`rodnet.io.recorder.MONITORS`."""
     out = _viscous_step(p)
-    if not len(p.model.rotation_dofs()):
+    clamps = [i for i, support in enumerate(p.scene.supports)
+              if support.dofs is None and support.fix == "clamp"]
+    if clamps and not len(p.model.rotation_dofs()):
         label = MODELS[p.built.variant].label
-        out += [f"supports[{i}].fix = 'clamp' holds only the node's position, as fix = 'pin' "
-                f"does (no rotations in {label}: the thread turns freely about the node, "
-                "carrying no bending moment); use model.type = 'cosserat' with bending for a "
-                "clamped rod" for i, support in enumerate(p.scene.supports)
-                if support.dofs is None and support.fix == "clamp"]
+        named = f"supports[{clamps[0]}].fix = 'clamp' holds" if len(clamps) == 1 else \
+            f"supports[{', '.join(str(i) for i in clamps)}].fix = 'clamp' each hold"
+        out.append(f"{named} only the node's position, as fix = 'pin' "
+                   f"does (no rotations in {label}: the thread turns freely about the node, "
+                   "carrying no bending moment); use model.type = 'cosserat' with bending for a "
+                   "clamped rod")
     out += _shared_supports(p) + _loads_on_supports(p)
     model = p.scene.model
     if p.built.variant == "rods" and p.structure.net is not None and model.knots == "rigid" \

@@ -147,3 +147,13 @@ def test_rigid_knots_with_one_element_per_thread_lock_and_say_so(tmp_path: Path)
     assert sag["rigid 2"] == pytest.approx(sag["cable 2"], rel=0.01)
     assert sag["rigid 1"] < 0.3 * sag["rigid 2"]
     assert warned == {"rigid 1": True, "rigid 2": False, "cable 2": False}
+
+
+def test_clamps_on_a_lumped_net_are_one_warning(tmp_path: Path) -> None:
+    """Eight supports left at the default ``fix = "clamp"`` on a lumped net hold as pins: one
+    warning names them all (it was one warning per support)."""
+    r = run(scene_from_toml(SAGGING_NET.replace('fix = "pin"\n', ""), ["model.type=lumped"]),
+            tmp_path, progress=False)
+    assert r.status == "ok", r.message
+    clamps = [w for w in r.summary["warnings"] if "'clamp'" in w]
+    assert len(clamps) == 1 and clamps[0].startswith("supports[0, 1, 2, 3, 4, 5, 6, 7].fix")
