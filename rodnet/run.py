@@ -206,10 +206,10 @@ def _check_supported(system: ThreadSystem, structure: Structure, scene: Scene) -
 
 def _energy_checks(p: Prepared) -> list[FrameCheck]:
     """The energy guard of a dynamic run whose energy nothing can raise: no loads (point or
-    line) and no gravity; or, with an implicit integrator, gravity constant in time (its potential then
-    counts) and no free bodies (whose own weight the frames do not account for). Symplectic
-    Euler's energy swings by about ``omega h / 2`` of itself on a resolved mode (a spring
-    at a third of its period per step: 0.86 to 1.19 of the start, bounded), so the explicit
+    line) and no gravity; or, with an implicit integrator, gravity constant in time (its
+    potential then counts) and no free bodies (whose own weight the frames do not account for).
+    Symplectic Euler's energy swings by about ``omega h / 2`` of itself on a resolved mode (a
+    spring at a third of its period per step: 0.86 to 1.19 of the start, bounded), so the explicit
     integrator is allowed to double its energy before it is deemed unstable, and is not
     guarded under gravity, where the swing is measured against the motion's small energy."""
     scene = p.scene
@@ -269,7 +269,8 @@ def _newton(p: Prepared) -> NewtonOptions:
 
 ERROR_FRACTION = 3e-5
 """The default ``simulation.error_tolerance`` as a fraction of the structure's size (the largest
-distance between two of its nodes at rest, :attr:`rodnet.topology.Structure.size`): 0.9 mm on the reference net, 30 um on a 1 m thread. Measured
+distance between two of its nodes at rest, :attr:`rodnet.topology.Structure.size`): 0.9 mm on
+the reference net, 30 um on a 1 m thread. Measured
 (validation/benchmarks/results/implicit_defaults.md): the reference deployment's largest mouth
 area within 0.35 % of the converged one with cable threads (BDF2), the 1 m thread's tip within
 0.42 mm of a run at 1e-7 m; the 1.5 m thread of validation/benchmarks/thread_defaults.py up to
