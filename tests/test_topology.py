@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from rodnet.scene import scene_from_toml
-from rodnet.topology import build_structure, corner_knots, square_net_threads
+from rodnet.topology import build_structure, corner_knots, diameter, square_net_threads
 from tests.conftest import small_net_toml
 
 
@@ -71,3 +71,21 @@ elements = 8
     np.testing.assert_allclose(s.rest_length, 0.5, rtol=1e-12)
     assert s.selectors["frame:start"] == 0 and s.selectors["frame:end"] == 8
     np.testing.assert_allclose(s.positions[s.selectors["frame:6"]], [3.0, 0.0, 0.0])
+
+
+def test_the_size_of_a_point_set_is_its_largest_distance_whatever_its_orientation() -> None:
+    """:func:`rodnet.topology.diameter` over the convex hull (more than 256 points, flat and on
+    a line: joggled) equals the largest distance over all pairs, and turning the points does not
+    change it (the bounding box's diagonal did)."""
+    from rodnet.kernels import so3
+
+    rng = np.random.default_rng(3)
+    line = np.outer(np.linspace(0.0, 2.0, 400), [1.0, 0.5, 0.0])
+    grid = np.stack(np.meshgrid(np.linspace(0.0, 3.0, 30), np.linspace(0.0, 4.0, 30)), -1)
+    flat = np.c_[grid.reshape(-1, 2), np.zeros(900)]
+    cloud = rng.normal(size=(500, 3)) * [3.0, 1.0, 0.2]
+    turn = so3.so3_exp(np.array([[0.3, -1.1, 0.7]]))[0]
+    for points in (line, flat, cloud):
+        pairs = np.sqrt(((points[:, None] - points[None]) ** 2).sum(-1)).max()
+        assert diameter(points) == pytest.approx(pairs, rel=1e-14)
+        assert diameter(points @ turn.T) == pytest.approx(pairs, rel=1e-12)
