@@ -235,7 +235,8 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
     "rods.material": ("", "Name of a `[[materials]]` entry; required."),
     "rods.points": (
         "m", "Polyline of the stress-free centreline, at least two points, consecutive points "
-        "distinct. The rod starts in this shape, free of stress."),
+        "distinct, never turning straight back (its members would overlap). The rod starts in "
+        "this shape, free of stress."),
     "rods.elements": (
         "", "Elements along the whole rod, at least one per polyline segment; spread by arc "
         "length, every polyline vertex kept as a node."),

@@ -277,6 +277,13 @@ class RodSpec:
         for a, b in zip(self.points[:-1], self.points[1:]):
             require(math.dist(a, b) > 0.0, "points", self.points,
                     "consecutive points must differ (zero-length segment)")
+        for i, (a, b, c) in enumerate(zip(self.points[:-2], self.points[1:-1], self.points[2:])):
+            u = [q - p for p, q in zip(a, b)]
+            w = [q - p for p, q in zip(b, c)]
+            cos = sum(x * y for x, y in zip(u, w)) / (math.hypot(*u) * math.hypot(*w))
+            require(cos > -1.0 + 1e-12, "points", self.points,
+                    f"the polyline turns straight back at point {i + 1}, so its two members "
+                    "would lie on each other; give the turn a width (a hairpin as two bends)")
         require(self.elements >= len(self.points) - 1, "elements", self.elements,
                 f"must be an integer >= {len(self.points) - 1} (one per polyline segment)")
         _finite_vector(self, "velocity", "angular_velocity")

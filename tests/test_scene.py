@@ -128,3 +128,25 @@ def test_cosserat_net_refuses_rk45() -> None:
         prepare(scene_from_toml(small_net_toml(integrator="rk45"), ["model.type=cosserat"]))
     assert info.value.key == "simulation.integrator" and "generalized-alpha" in str(info.value)
     assert "explicit" in str(info.value)
+
+
+def test_a_polyline_that_turns_straight_back_is_refused() -> None:
+    """A vertex where the polyline reverses (its two members would lie on each other) is
+    named; a turn just short of it is a corner and runs."""
+    rod = """
+[[materials]]
+name = "steel"
+density = 7800.0
+youngs_modulus = 2.0e11
+diameter = 0.01
+[[rods]]
+name = "r"
+material = "steel"
+points = {points}
+[[supports]]
+node = "r:start"
+"""
+    with pytest.raises(SceneError) as info:
+        scene_from_toml(rod.format(points="[[0, 0, 0], [1, 0, 0], [2, 0, 0], [1.5, 0, 0]]"))
+    assert info.value.key == "rods[0].points" and "turns straight back at point 2" in str(info.value)
+    scene_from_toml(rod.format(points="[[0, 0, 0], [1, 0, 0], [2, 0, 0], [1.5, 0, 0.001]]"))
