@@ -5,6 +5,7 @@ the movie of a run, ``compile`` the kernels ahead of time."""
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
 from pathlib import Path
@@ -155,7 +156,18 @@ demo_scene_text = reference_scene_text
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit status (0 ok, 1 failed run, 2 bad input, 130 interrupted by
-    Ctrl-C, 143 by SIGTERM)."""
+    Ctrl-C, 143 by SIGTERM). Where the reader of the output goes away (``rodnet run ... | head``)
+    the rest of the output is dropped, without a traceback, and the status is 1 (the results
+    are written before the lines that report them)."""
+    try:
+        return _command(argv)
+    except BrokenPipeError:
+        sys.stdout = open(os.devnull, "w")   # noqa: SIM115  (Python flushes stdout at exit)
+        return EXIT_FAILED
+
+
+def _command(argv: list[str] | None) -> int:
+    """:func:`main` without its handling of a closed output."""
     args = _parser().parse_args(argv)
     if args.command == "validate":
         return _validate_command(args)
