@@ -611,6 +611,13 @@ def _warnings(p: Prepared, stats: StepStats, monitors: dict[str, float]) -> list
         out.append(f"simulation.dt = {sim.dt:g} s is longer than output.frame_interval = "
                    f"{interval:g} s: the steps were cut to land on every frame, so the run "
                    f"stepped at {interval:g} s")
+    if "jump_from" in stats.extra:
+        e = stats.extra
+        out.append(f"between load factors {e['jump_from']:.4g} and {e['jump_to']:.4g} the "
+                   f"equilibrium jumped (a node moved {e['jump_move']:.3g} m in one increment, "
+                   "far more per load than before): the load passed a limit point (a "
+                   "snap-through) or a bifurcation (buckling), which load control cannot follow; "
+                   "the states from there on are equilibria on another branch")
     if stats.extra.get("unstable"):
         out.append("the static equilibrium found is unstable: its tangent stiffness has a "
                    "negative eigenvalue (a link or column in compression that would buckle, a "

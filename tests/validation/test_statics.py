@@ -860,3 +860,54 @@ def test_a_polyline_corner_is_a_rigid_joint(tmp_path: Path) -> None:
         errors.append(-r.arrays["positions"][-1, -1, 2] / expected - 1.0)
     assert abs(errors[1]) < 1.5e-3
     assert 3.5 < errors[0] / errors[1] < 4.5
+
+
+TOGGLE = """
+[simulation]
+type = "static"
+load_steps = 6
+[model]
+type = "cosserat"
+axial = "linear"
+[[materials]]
+name = "m"
+density = 1.0
+youngs_modulus = 1.0
+diameter = 1.0
+axial_stiffness = 1.885e6
+shear_stiffness = 1.0e9
+bending_stiffness = 9274.0
+torsional_stiffness = 9274.0
+[[rods]]
+name = "r"
+material = "m"
+points = [[-12.943, 0, 0.0], [0, 0.386, 0.0], [12.943, 0, 0.0]]
+elements = 20
+[[supports]]
+node = "r:start"
+[[supports]]
+node = "r:end"
+[[loads]]
+node = "r:10"
+force = [0.0, -{load}, 0.0]
+[output]
+vtk = false
+""" + "".join(f'[[supports]]\nnode = "r:{i}"\ndofs = ["z"]\n' for i in range(1, 20))
+"""Williams' toggle frame (span 2 x 12.943, rise 0.386, EI 9,274, EA 1.885e6, clamped), held in
+its plane, a load at the apex (an outside check's scene; its own solver puts the limit load at
+33.87)."""
+
+
+def test_a_load_past_the_toggles_limit_point_says_the_path_jumped(tmp_path: Path) -> None:
+    """Below the limit load the apex follows the path of equilibria without a warning; past it
+    (40 against 33.87) load control lands on the far branch, turned through, and the run says
+    so (it had reported a quiet ok)."""
+    said, apex = {}, {}
+    for load in (30.0, 40.0):
+        r = run(scene_from_toml(TOGGLE.format(load=load)), tmp_path / str(load), progress=False)
+        assert r.status == "ok", r.message
+        said[load] = [w for w in r.summary["warnings"] if "equilibrium jumped" in w]
+        apex[load] = -float(r.arrays["positions"][-1, 10, 1] - 0.386)
+    assert said[30.0] == [] and len(said[40.0]) == 1
+    assert apex[30.0] == pytest.approx(0.1387, rel=0.03)     # the checker's 0.13871 (-1.9 %)
+    assert apex[40.0] == pytest.approx(0.5320, rel=0.01)     # its stiffening branch: 0.5320
