@@ -614,10 +614,10 @@ def _warnings(p: Prepared, stats: StepStats, monitors: dict[str, float]) -> list
     if "jump_from" in stats.extra:
         e = stats.extra
         out.append(f"between load factors {e['jump_from']:.4g} and {e['jump_to']:.4g} the "
-                   f"equilibrium jumped (a node moved {e['jump_move']:.3g} m in one increment, "
+                   f"equilibrium jumped (a node moved {e['jump_move']:.3g} m in one load step, "
                    "far more per load than before): the load passed a limit point (a "
-                   "snap-through) or a bifurcation (buckling), which load control cannot follow; "
-                   "the states from there on are equilibria on another branch")
+                   "snap-through) or a bifurcation (buckling), and the states from there on are "
+                   "on another branch of equilibria; the path between them was not followed")
     if stats.extra.get("unstable"):
         out.append("the static equilibrium found is unstable: its tangent stiffness has a "
                    "negative eigenvalue (a link or column in compression that would buckle, a "

@@ -52,8 +52,9 @@ def solve_static(system: System, state: State, load_steps: int, options: NewtonO
     on_frame(0.0, state)
     solve = _Solve(system, options, LinearSolver(), scale, stats, history)
     done, target_steps = 0.0, [k / load_steps for k in range(1, load_steps + 1)]
-    rate = 0.0   # the largest node motion per load factor of the last increment [m]
+    rate = 0.0   # the largest node motion per load factor of the last load step [m]
     for target in target_steps:
+        q_step = q
         lam, halvings = done, 0
         while lam < target - 1e-12:
             trial = min(target, lam + (target - done) / 2 ** halvings)
@@ -71,11 +72,11 @@ def solve_static(system: System, state: State, load_steps: int, options: NewtonO
                                            f"{trial:.4g}: {result.message}; relaxing from the "
                                            f"last equilibrium did not reach it either")
                 trial = target
-            rate = _watch_jump(system, q, q_new, lam, trial, rate, stats)
             q, lam = q_new, trial
             stats.record_step(trial)
-        done = target
         q = _stable(solve, q, target)
+        rate = _watch_jump(system, q_step, q, done, target, rate, stats)
+        done = target
         state.q = q
         on_frame(target, state)
     return stats
@@ -148,9 +149,9 @@ def _stable(solve: _Solve, q: Configuration, load: float) -> Configuration:
 
 
 JUMP_FACTOR = 3.0
-"""A load increment whose largest node motion per load factor is this many times the last
-increment's, moving a node by more than :data:`JUMP_SIZE` of the structure's size, is taken for a
-jump of the equilibrium path (the run warns). Measured on Williams' toggle frame (20 elements):
+"""A load step whose largest node motion per load factor is this many times the last step's,
+moving a node by more than :data:`JUMP_SIZE` of the structure's size, is taken for a jump of the
+equilibrium path (the run warns). Measured on Williams' toggle frame (20 elements):
 a smooth approach to the limit point at 99.5 % of its load gives ratios up to 2.04 (6 load
 steps), 1.63 (20); a jump past it 4.6 - 8.8 (the square-root path of a limit point reached in
 equal steps: at most about 2.4)."""
@@ -160,11 +161,11 @@ JUMP_SIZE = 1e-3
 
 def _watch_jump(system: System, q: Configuration, q_new: Configuration, lam: float,
                 trial: float, rate: float, stats: StepStats) -> float:
-    """The motion per load factor [m] of the increment from ``q`` at ``lam`` to ``q_new`` at
-    ``trial``; where it jumps (:data:`JUMP_FACTOR`), the first jump's load factors go to
-    ``stats.extra`` (``jump_from``, ``jump_to``, ``jump_move`` [m]). Load control follows the
-    path of equilibria only up to a limit point (a snap-through) or a bifurcation (buckling):
-    past it Newton lands on another branch, an equilibrium, far away."""
+    """The motion per load factor [m] of the load step from ``q`` at ``lam`` to ``q_new`` at
+    ``trial`` (an unstable equilibrium left included); where it jumps (:data:`JUMP_FACTOR`),
+    the first jump's load factors go to ``stats.extra`` (``jump_from``, ``jump_to``,
+    ``jump_move`` [m]). Load control follows the path of equilibria only up to a limit point
+    (a snap-through) or a bifurcation (buckling): past it Newton lands on another branch."""
     move = float(np.max(np.linalg.norm(q_new.x - q.x, axis=1), initial=0.0))
     now = move / max(trial - lam, 1e-300)
     if rate > 0.0 and now > JUMP_FACTOR * rate and move > JUMP_SIZE * system.length_scale \
