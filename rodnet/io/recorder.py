@@ -30,6 +30,7 @@ SHAPES = {"positions": ("N", 3), "velocities": ("N", 3), "rotations": ("N", 4), 
           "body_moment": ("B", 3), "body_positions": ("B", 3), "body_rotations": ("B", 4),
           "body_velocities": ("B", 3), "body_angular_velocities": ("B", 3),
           "rotation_node_quaternions": ("R", 4), "rotation_node_spins": ("R", 3),
+          "section_forces": ("E", 3), "section_moments": ("E", 3),
           "support_reactions": ("S", 3)}
 """The arrays a frame may hold and their shape per frame (N nodes, E elements, B bodies, R
 rotation nodes, S supported nodes)."""

@@ -914,3 +914,29 @@ def test_a_load_past_the_toggles_limit_point_says_the_path_jumped(tmp_path: Path
     assert said[30.0] == [] and len(said[40.0]) == 1
     assert apex[30.0] == pytest.approx(0.1387, rel=0.03)     # the checker's 0.13871 (-1.9 %)
     assert apex[40.0] == pytest.approx(0.5320, rel=0.01)     # its stiffening branch: 0.5320
+
+
+def test_the_section_forces_and_moments_of_a_cantilever_balance_its_tip_load(
+        tmp_path: Path) -> None:
+    """A steel cantilever (1 m, 10 mm, 20 elements) under a tip force (0, 3, -2) N, small
+    deflection: in every element the section force is the tip force (its shear parts, in the
+    element's frame, of size |P| = 3.61 N, along the section but for the turn of the rod,
+    0.018 rad at the tip), and the bending moment at the element's middle is |P| (L - s); no
+    twist. The outputs
+    ``section_forces`` and ``section_moments`` (E, 3)."""
+    text = clamped_rod_toml("""density = 7800.0
+youngs_modulus = 2.0e11
+poisson_ratio = 0.3
+diameter = 0.01""", 1.0, [0.0, 3.0, -2.0], load_steps=1)
+    r = run(scene_from_toml(text), tmp_path, progress=False)
+    assert r.status == "ok", r.message
+    forces, moments = r.arrays["section_forces"][-1], r.arrays["section_moments"][-1]
+    load = np.hypot(3.0, 2.0)
+    middle = (np.arange(20) + 0.5) / 20
+    assert forces.shape == moments.shape == (20, 3)
+    np.testing.assert_allclose(np.linalg.norm(forces, axis=1), load, rtol=1e-4)
+    # the axial part is the tip force along the turned section: at most |P| sin(P L^2 / 2 EI)
+    assert np.abs(forces[:, 0]).max() < load * np.sin(load / (2.0 * 2.0e11 * np.pi * 1e-8 / 64))
+    np.testing.assert_allclose(np.linalg.norm(moments[:, 1:], axis=1), load * (1.0 - middle),
+                               rtol=2e-3)
+    assert np.abs(moments[:, 0]).max() < 1e-9 * load                  # no twist
