@@ -506,7 +506,9 @@ def _frame_function(p: Prepared) -> Callable[[float, State], dict[str, Any]]:
     static = p.scene.simulation.type == "static"
 
     def frame_of(t: float, state: State) -> dict[str, Any]:
-        frame = p.system.frame(t, state)
+        frame = p.system.frame(STATIC_TIME if static else t, state)
+        if static:   # the loads and gravity at the frame's load factor
+            frame["potential_energy"] *= t
         if len(nodes):
             v = np.zeros_like(state.v) if static else state.v
             frame["support_reactions"] = p.system.support_reactions(

@@ -26,6 +26,7 @@ MONITORS = ("max_element_rotation", "inside_out_elements")
 
 SHAPES = {"positions": ("N", 3), "velocities": ("N", 3), "rotations": ("N", 4), "tension": ("E",),
           "curvature": ("E",), "twist": ("E",), "kinetic_energy": (), "elastic_energy": (),
+          "potential_energy": (), "contact_energy": (),
           "contact_force": (), "contact_count": (), "friction_work": (), "body_force": ("B", 3),
           "body_moment": ("B", 3), "body_positions": ("B", 3), "body_rotations": ("B", 4),
           "body_velocities": ("B", 3), "body_angular_velocities": ("B", 3),

@@ -469,8 +469,9 @@ class ThreadSystem:
 
     def frame(self, t: float, state: State) -> dict[str, Any]:
         """What a saved frame holds: the model's arrays, every rotation node's quaternion and
-        body-frame angular velocity (models with rotations), the kinetic and elastic energy [J]
-        and, with bodies, the contact and body arrays of :meth:`ContactTerm.frame_arrays`."""
+        body-frame angular velocity (models with rotations), the kinetic, elastic and potential
+        energy [J] and, with bodies, the energy in the penalty springs and the contact and body
+        arrays of :meth:`ContactTerm.frame_arrays`."""
         if self.n_moving:  # the bodies' motion from the unknowns, for the frame and the state
             state.bodies = self._motion(state.q, state.v)
         frame = self.model.frame_arrays(state.q, state.v[:self.model.n_dof])
@@ -479,6 +480,9 @@ class ThreadSystem:
             frame["rotation_node_spins"] = state.spin.copy()
         energy = self.energy(t, state)
         frame["kinetic_energy"], frame["elastic_energy"] = energy["kinetic"], energy["elastic"]
+        frame["potential_energy"] = energy.get("potential", float("nan"))
+        if "contact" in energy:
+            frame["contact_energy"] = energy["contact"]
         if self.contact is not None and state.bodies is not None:
             frame.update(self.contact.frame_arrays(state.q.x, state.velocities, state.bodies,
                                                    state.friction_work))

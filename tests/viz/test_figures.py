@@ -45,7 +45,7 @@ def test_plot_with_bodies_adds_contact_motion_and_energy_panels(capture_run: Pat
     motion, energy = panels[2], panels[3]
     assert [c.label for c in motion.curves] == ["target speed"]
     assert motion.right_ylabel == "spin [deg/s]"
-    assert [c.label for c in energy.curves] == ["kinetic", "elastic"]
+    assert [c.label for c in energy.curves] == ["kinetic", "elastic", "contact"]
     np.testing.assert_array_equal(panels[1].curves[0].values, data["contact_force"])
     # spin in deg/s from the world angular velocity in rad/s
     data["body_angular_velocities"] = np.zeros_like(data["body_angular_velocities"])

@@ -372,11 +372,17 @@ class CosseratModel:
         return np.abs(N) if self.tension_only else N
 
     def energy(self, q: Configuration, v: FloatArray, t: float = 0.0) -> dict[str, float]:
-        """Kinetic (translational + rotational) and elastic energy [J]; ``t`` is unused (the
-        signature is that of the lumped model's)."""
+        """Kinetic (translational + rotational) and elastic energy [J], and the ``potential``
+        ``-sum f(t) . x`` of gravity and the dead forces at time ``t`` (nan where a load has a
+        moment: a dead moment has no potential on finite rotations)."""
         x, quat, _ = self._element_state(q, v)
         elastic = strain_energy(self.rest_length, self.reference_strain, self.stiffness, x, quat,
                                 self.tension_only, self.kink_strain)
         kinetic = 0.5 * float(np.sum(self.dof_mass * v * v))
-        return {"kinetic": kinetic, "elastic": float(elastic.sum())}
+        if len(self.load_nodes) and np.any(self.load_moment):
+            potential = float("nan")
+        else:
+            n3 = 3 * self.n_nodes
+            potential = -float(np.dot(self._external(q, t, 1.0)[0][:n3], q.x.ravel()))
+        return {"kinetic": kinetic, "elastic": float(elastic.sum()), "potential": potential}
 
