@@ -48,10 +48,16 @@ class StepRate:
         The model's strains (as :meth:`strains` of the model returns them) at the reference.
     inv_h : float
         1 / h_bar [1/s].
+    start : Configuration or None
+        The midpoint rule's start configuration, for a model that takes its forces in secant
+        form (``secant_forces``): forces at the midpoint ``q`` from the change of the stored
+        energy between ``start`` and the step's end ``2 q - start``, damping at the rate
+        ``(e_end - e_start) inv_h / 2`` (spring FORMULATION.md, S15).
     """
 
     reference: object
     inv_h: float
+    start: Configuration | None = None
 
 
 @dataclass(frozen=True)

@@ -646,9 +646,12 @@ class Midpoint(Scheme):
         # d(mid)/d(v1) = 1/2 for velocities, h/4 T(dq/2) for the configuration; the gyroscopic
         # derivative in C stands in for that of the rotated momenta (equal to O(h))
         rate = _step_rate(self.strain(state), 2.0 / h)
+        if rate is not None and s.secant_forces:   # energy-conserving forces over the step
+            rate = replace(rate, start=state.q)
         return self._equation(state, unpack, M / h, state.v[free], 0.25 * h, 0.5, t + 0.5 * h,
                               rate, [(state.v + h * g)[free] for g in self._guesses(state)],
-                              s.potential_exact and not len(rot), inertial=momentum_rate)
+                              s.potential_exact and not len(rot) and not s.secant_forces,
+                              inertial=momentum_rate)
 
     def local_error(self, old: MotionState, new: MotionState, h: float) -> float:
         """Trapezoidal positions: ``h^2 |vd1 - vd0| / 12`` over the free translations."""

@@ -86,6 +86,10 @@ class System(Protocol):
     """Whether ``g`` with a step rate is exactly the gradient of :meth:`potential` (so the
     system has one)."""
 
+    secant_forces: bool
+    """Whether ``g`` takes the midpoint rule's secant form when its :class:`StepRate` has a
+    ``start`` (then ``g`` is not the gradient of :meth:`potential`)."""
+
     def mechanical_energy(self, q: Configuration, v: FloatArray, t: float) -> float | None:
         """Kinetic plus potential energy (internal, external at time ``t``, contact springs)
         [J]; None where the forces have no potential."""

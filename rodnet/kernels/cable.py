@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from rodnet.kernels.tension import axial_force, ramp, step_strain_rate
+from rodnet.kernels.tension import axial_force, ramp, secant_axial_force, step_strain_rate
 
 FloatArray = NDArray[np.float64]
 
@@ -86,6 +86,44 @@ def cable_tangents(x_a: FloatArray, x_b: FloatArray, v_a: FloatArray, v_b: Float
         n_geometric = np.maximum(n_geometric, 0.0)
     K = t[:, :, None] * dn_dx[:, None, :] + (n_geometric / length)[:, None, None] * transverse
     return n, n[:, None] * t, K, C
+
+
+def cable_secant_tangents(x_a: FloatArray, x_b: FloatArray, x0_a: FloatArray, x0_b: FloatArray,
+                          rest_length: FloatArray, EA: FloatArray, etaA: FloatArray,
+                          kink_strain: float, tension_only: bool, inv_step: float,
+                          ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """The midpoint rule's secant form (spring FORMULATION.md, S15) of :func:`cable_tangents`:
+    the force at the step's midpoint ends ``x_a, x_b`` (E, 3) from the start ends ``x0_a,
+    x0_b`` (E, 3), whose end is ``2 x - x0``: ``N_bar c / l_bar`` along the midpoint chord
+    ``c``, ``N_bar`` the secant axial force (S14) between the start and end strains and
+    ``l_bar`` the mean of the start and end lengths. Its work over the step is the change of
+    the stored energy plus a dissipation, so the midpoint rule conserves the energy of an
+    undamped structure (and its momenta, the force lying along the chord).
+
+    Returns
+    -------
+    N : (E,) float
+        ``N_bar`` [N].
+    g_b : (E, 3) float
+        Internal force at the end node (``-g_b`` at the start node).
+    K_bb, C_bb : (E, 3, 3) float
+        d g_b / d x_b at fixed start, and zeros (the rate is the step's).
+    """
+    c = x_b - x_a
+    c0 = x0_b - x0_a
+    c1 = 2.0 * c - c0
+    l0 = np.sqrt(np.einsum("ij,ij->i", c0, c0))
+    l1 = np.sqrt(np.einsum("ij,ij->i", c1, c1))
+    n1 = c1 / l1[:, None]
+    mean_length = 0.5 * (l0 + l1)
+    n, dn_de1 = secant_axial_force(l0 / rest_length - 1.0, l1 / rest_length - 1.0, EA, etaA,
+                                   kink_strain, tension_only, inv_step)
+    per_length = n / mean_length
+    # d/dc of (N / l_bar) c with dl1/dc = 2 n1 and dl_bar/dc = n1
+    K = (c / mean_length[:, None])[:, :, None] * (2.0 * dn_de1 / rest_length)[:, None, None] \
+        * n1[:, None, :] + per_length[:, None, None] * np.eye(3)[None] \
+        - (per_length / mean_length)[:, None, None] * c[:, :, None] * n1[:, None, :]
+    return n, per_length[:, None] * c, K, np.zeros_like(K)
 
 
 def element_blocks(K_bb: FloatArray) -> FloatArray:

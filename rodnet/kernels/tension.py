@@ -102,6 +102,53 @@ def step_strain_rate(strain: FloatArray, reference: FloatArray, inv_h: float,
     return (strain - clipped) * inv_h
 
 
+SECANT_SMALL = 1e-9
+"""Below this change of strain over a step the secant force (S14) takes its limit, the force
+at the mean strain: the difference quotient would lose digits, and the two differ by
+``EA r''(e) de^2 / 24``."""
+
+
+def secant_axial_force(start: FloatArray, end: FloatArray, EA: FloatArray, etaA: FloatArray,
+                       kink_strain: float, tension_only: bool,
+                       inv_step: float) -> tuple[FloatArray, FloatArray]:
+    """Axial force over a step from strain ``start`` to ``end`` whose work is the change of
+    the stored energy (S6) plus a dissipation, and its derivative by ``end``, (S14).
+
+    Parameters
+    ----------
+    start, end : (E,) float
+        ``e0`` and ``e1``.
+    EA, etaA : (E,) float
+    kink_strain : float
+    tension_only : bool
+    inv_step : float
+        1 / h [1/s]: the damping acts at the strain rate ``(e1 - e0) / h`` (the tension-only
+        law from ``max(e0, 0)``, as (S11)).
+
+    Returns
+    -------
+    N, dN_de1 : (E,) float
+    """
+    de = end - start
+    small = np.abs(de) <= SECANT_SMALL
+    if not tension_only:
+        return EA * 0.5 * (start + end) + etaA * de * inv_step, 0.5 * EA + etaA * inv_step
+    safe = np.where(small, 1.0, de)
+    stored = axial_energy(end, EA, 1.0, kink_strain, True) - \
+        axial_energy(start, EA, 1.0, kink_strain, True)
+    r_end, slope_end = ramp(end, kink_strain)
+    r_mid, slope_mid = ramp(0.5 * (start + end), kink_strain)
+    elastic = np.where(small, EA * r_mid, stored / safe)
+    d_elastic = np.where(small, 0.5 * EA * slope_mid, (EA * r_end - elastic) / safe)
+    curvature = np.where((end > 0.0) & (end < kink_strain), 1.0 / max(kink_strain, 1e-300), 0.0)
+    taut_from = np.maximum(start, 0.0)
+    viscous = etaA * slope_end * (end - taut_from) * inv_step
+    d_viscous = etaA * inv_step * (curvature * (end - taut_from) + slope_end)
+    total = elastic + viscous
+    active = total > 0.0
+    return np.where(active, total, 0.0), np.where(active, d_elastic + d_viscous, 0.0)
+
+
 def step_potential(strain: FloatArray, strain_reference: FloatArray, inv_h: float,
                    EA: FloatArray, etaA: FloatArray, rest_length: FloatArray, kink_strain: float,
                    tension_only: bool) -> FloatArray:

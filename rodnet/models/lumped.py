@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 from rodnet.config import Scene
 from rodnet.errors import SceneError
 from rodnet.kernels import explicit as kx
-from rodnet.kernels.cable import cable_tangents, element_blocks
+from rodnet.kernels.cable import cable_secant_tangents, cable_tangents, element_blocks
 from rodnet.kernels.cosserat_compiled import RodElements, no_rod_elements
 from rodnet.kernels.hinge import Hinges, hinge_energy, hinge_force, hinge_frequency, no_hinges
 from rodnet.kernels.schedule import LoadSchedule, factors
@@ -103,6 +103,9 @@ class LumpedModel:
     potential_exact = True
     """``g`` with a step rate is the gradient of :meth:`potential` (no hinges: they run
     explicitly)."""
+    secant_forces = True
+    """The midpoint rule's forces are the secant form (S15) (a :class:`StepRate` with a
+    ``start``): the midpoint rule then conserves energy."""
 
     # --- segment kinematics and forces ---------------------------------------------------
 
@@ -208,22 +211,32 @@ class LumpedModel:
         ``linearization``: its strain shift moves the geometric stiffness; convex leaves
         compression (the linear law) out of it."""
         x, vv = q.x, v.reshape(-1, 3)
-        if not need_matrices:
+        secant = rate is not None and rate.start is not None
+        if not need_matrices and not secant:
             f = self.segment_force(x, vv, rate) + load_factor * self.external_force(t)
             return -f.ravel(), [], []
         if len(self.hinges.nodes):  # the model table refuses implicit and static Kirchhoff runs
             raise NotImplementedError("bending hinges have no tangent: Kirchhoff threads are "
                                       "integrated explicitly")
         a, b = self.segments[:, 0], self.segments[:, 1]
-        step = None if rate is None else (rate.reference, rate.inv_h)
-        lin = Linearization() if linearization is None else linearization
-        n, g_b, K_bb, C_bb = cable_tangents(x[a], x[b], vv[a], vv[b], self.rest_length, self.EA,
-                                            self.etaA, self.kink_strain, self.tension_only, step,
-                                            lin.strain_shift, lin.convex)
+        if secant:   # the midpoint rule's secant form (S15); the exact tangent
+            x0 = rate.start.x  # type: ignore[union-attr]
+            n, g_b, K_bb, C_bb = cable_secant_tangents(
+                x[a], x[b], x0[a], x0[b], self.rest_length, self.EA, self.etaA,
+                self.kink_strain, self.tension_only, 0.5 * rate.inv_h)  # type: ignore[union-attr]
+        else:
+            step = None if rate is None else (rate.reference, rate.inv_h)
+            lin = Linearization() if linearization is None else linearization
+            n, g_b, K_bb, C_bb = cable_tangents(x[a], x[b], vv[a], vv[b], self.rest_length,
+                                                self.EA, self.etaA, self.kink_strain,
+                                                self.tension_only, step, lin.strain_shift,
+                                                lin.convex)
         g = np.zeros((self.structure.n_nodes, 3))
         np.add.at(g, b, g_b)
         np.add.at(g, a, -g_b)
         g -= load_factor * self.external_force(t)
+        if not need_matrices:
+            return g.ravel(), [], []
         return g.ravel(), [element_blocks(K_bb)], [element_blocks(C_bb)]
 
     def strains(self, q: Configuration, v: FloatArray) -> tuple[FloatArray, FloatArray]:

@@ -357,6 +357,12 @@ class ThreadSystem:
         """Whether ``g`` with a step rate is exactly the gradient of :meth:`potential`."""
         return self.contact is None and bool(getattr(self.model, "potential_exact", False))
 
+    @property
+    def secant_forces(self) -> bool:
+        """Whether the model takes the midpoint rule's secant form (the contact term does not:
+        its penalty forces act at the midpoint)."""
+        return bool(getattr(self.model, "secant_forces", False))
+
     def times_tangent_operator(self, K: sp.csr_matrix, dq: FloatArray) -> sp.csr_matrix:
         """``K T(dq)`` without forming ``T`` (the same pattern as ``K``)."""
         if not len(self._free_rotation_nodes):
