@@ -16,7 +16,7 @@ from rodnet.integrate.frames import StepStats
 from rodnet.models.lumped import LumpedModel
 from rodnet.io.recorder import Recorder
 from rodnet.run import prepare, run
-from rodnet.scene import scene_from_toml
+from rodnet.scene import scene_from_dict, scene_from_toml
 from tests.conftest import small_net_toml
 
 
@@ -723,3 +723,20 @@ def test_the_outputs_give_the_angular_momentum_of_a_free_rod(tmp_path: Path,
         return float(np.abs(L - L[0]).max() / np.linalg.norm(L[0]))
     assert drift(J) < 1e-10
     assert drift(1.1 * J) > 1e-6       # the sections trade momentum with the centreline
+
+
+@pytest.mark.parametrize("model", ['type = "lumped"', 'type = "cosserat"\nbending = false\ntorsion = false',
+                                   'type = "cosserat"\nknots = "pinned"',
+                                   'type = "kirchhoff"\nknots = "pinned"'])
+def test_the_scene_in_the_summary_runs_the_same_model(tmp_path: Path, model: str) -> None:
+    """summary.json's scene, run again, is the same run: it left out bending = torsion =
+    false of cable threads once, and ran them again as Cosserat rods."""
+    text = small_net_toml(duration=0.02).replace('type = "lumped"', model)
+    first = run(scene_from_toml(text), tmp_path / "first", progress=False)
+    again = run(scene_from_dict(first.summary["scene"]), tmp_path / "again", progress=False)
+    assert first.status == again.status == "ok"
+    recorded = [{k: v for k, v in r.summary["scene"].items() if k != "output"}
+                for r in (first, again)]
+    assert recorded[0] == recorded[1]
+    np.testing.assert_array_equal(again.arrays["positions"], first.arrays["positions"])
+    assert again.arrays["positions"].shape == first.arrays["positions"].shape

@@ -106,10 +106,11 @@ MODELS: dict[str, ModelType] = {
         "the lumped model", build_lumped, lumped_explicit_plan,
         Supports(ALL, True, (*IMPLICIT, "explicit"), (*IMPLICIT, "explicit")),
         stable_step=lambda m: m.stable_step(), unused=ROTATION_KEYS),
-    "cable": ModelType(
+    "cable": ModelType(   # bending = torsion = false select it: they stay in the record
         "cable threads", build_lumped, lumped_explicit_plan,
         Supports(ALL, True, (*IMPLICIT, "explicit"), (*IMPLICIT, "explicit")),
-        stable_step=lambda m: m.stable_step(), unused=ROTATION_KEYS),
+        stable_step=lambda m: m.stable_step(),
+        unused=tuple(k for k in ROTATION_KEYS if k not in ("model.bending", "model.torsion"))),
     "rods": ModelType(
         "Cosserat rods", build_cosserat, rod_explicit_plan,
         Supports((*IMPLICIT, "explicit"), True, (*IMPLICIT, "explicit"), (*IMPLICIT, "explicit"),
