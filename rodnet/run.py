@@ -638,6 +638,17 @@ def _warnings(p: Prepared, stats: StepStats, monitors: dict[str, float]) -> list
                    + (" of the tension-only law, which carries no compression; a column or beam "
                       "needs model.axial = 'linear'" if p.scene.model.axial == "tension-only"
                       else "; the load exceeds what the rod can carry in compression"))
+    elif inside_out:
+        scaled = p.built.rotary_inertia_scale is not None and p.scene.integrator == "explicit"
+        out.append(f"up to {inside_out} rod element(s) were inside out at a saved frame (the "
+                   "chord against the section's axis, FORMULATION.md C51): their sections did not "
+                   "turn with their chords, and the regularising spring of 0.01 EA pulled on "
+                   "chords shorter than their rest length, where a thread is slack"
+                   + ("; the explicit integrator's raised rotary inertia (factor "
+                      f"{p.built.rotary_inertia_scale:.3g}) slows the sections: use an implicit "
+                      "integrator or simulation.rotary_inertia_scaling = false"
+                      if scaled else "; use more elements (model.elements_per_thread, or "
+                      "rods.elements) or shorter steps"))
     phi = max(stats.max_element_rotation or 0.0, monitors.get("max_element_rotation", 0.0))
     if phi <= ROTATION_STOP:
         return out
