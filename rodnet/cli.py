@@ -364,8 +364,11 @@ def _report(result) -> None:  # type: ignore[no-untyped-def]
     s = result.summary
     if result.status != "ok":
         what = "was stopped" if result.status == "interrupted" else "failed"
+        reached = (f"load factor {s['simulated_time_s']:.4g}"
+                   if s["scene"]["simulation"]["type"] == "static"
+                   else f"t = {s['simulated_time_s']:.4g} s")
         print(f"rodnet: the run {what}: {result.message}. The {s['frames']} frames computed up to "
-              f"t = {s['simulated_time_s']:.4g} s are in {result.directory}/.", file=sys.stderr)
+              f"{reached} are in {result.directory}/.", file=sys.stderr)
         return
     work = (f" ({s['newton_iterations']} Newton iterations, {s['rejected_steps']} rejected)"
             if s["newton_iterations"] else "")

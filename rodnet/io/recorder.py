@@ -22,7 +22,9 @@ FrameFunction = Callable[[float, State], dict[str, Any]]
 FrameCheck = Callable[[float, dict[str, Any]], None]
 
 MONITORS = ("max_element_rotation", "inside_out_elements")
-"""Frame scalars the recorder tracks the largest of, without saving them."""
+"""Frame scalars the recorder tracks, without saving them: the largest (under their name), the
+last frame's (``<name>_last``) and the number of frames where they are positive
+(``<name>_frames``)."""
 
 SHAPES = {"positions": ("N", 3), "velocities": ("N", 3), "rotations": ("N", 4), "tension": ("E",),
           "curvature": ("E",), "twist": ("E",), "kinetic_energy": (), "elastic_energy": (),
@@ -76,7 +78,11 @@ class Recorder:
         frame = self.frame_of(t, state)
         for key in MONITORS:
             if key in frame:
-                self.monitors[key] = max(self.monitors.get(key, 0.0), float(frame.pop(key)))
+                value = float(frame.pop(key))
+                self.monitors[key] = max(self.monitors.get(key, 0.0), value)
+                self.monitors[f"{key}_last"] = value
+                self.monitors[f"{key}_frames"] = self.monitors.get(f"{key}_frames", 0.0) + \
+                    float(value > 0.0)
         self.time.append(t)
         self.frames.append(frame)
         if self.vtk is not None:

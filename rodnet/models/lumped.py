@@ -335,16 +335,19 @@ def build_lumped(scene: Scene, structure: Structure,
     np.add.at(mass, structure.segments[:, 0], 0.5 * seg_mass)
     np.add.at(mass, structure.segments[:, 1], 0.5 * seg_mass)
     inv_mass = 1.0 / mass
+    label = "the lumped model and cable threads" if hinges is None else "Kirchhoff threads"
     for i, s in enumerate(scene.supports):
         if s.dofs is not None and set(s.dofs) != {"x", "y", "z"}:
-            raise SceneError(f"supports[{i}].dofs", list(s.dofs), "the lumped model and cable threads "
-                             "support whole nodes only: use fix = 'pin' or dofs = ['x', 'y', 'z']")
+            raise SceneError(f"supports[{i}].dofs", list(s.dofs), f"{label} support whole nodes "
+                             "only: use fix = 'pin' or dofs = ['x', 'y', 'z']")
         inv_mass[structure.node(s.node, f"supports[{i}].node")] = 0.0
     for i, load in enumerate(scene.loads):
         if any(load.moment):
             raise SceneError(f"loads[{i}].moment", load.moment,
-                             "the lumped model and cable threads have no rotations; moments "
-                             "need model.type = 'cosserat' with model.bending or model.torsion on")
+                             f"{label} have no rotations (" + ("their hinges bend through the "
+                             "node positions" if hinges is not None else "nodes are points")
+                             + "); moments need model.type = 'cosserat' with model.bending or "
+                             "model.torsion on")
     loads = dead_loads(scene, structure, mass)
     model = LumpedModel(
         structure=structure, mass=mass, inv_mass=inv_mass,

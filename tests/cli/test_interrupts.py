@@ -64,3 +64,15 @@ def test_progress_lines_go_to_a_file(tmp_path: Path) -> None:
                             "-o", str(tmp_path / "quiet"), "--quiet"],
                            capture_output=True, text=True, cwd=tmp_path, timeout=300)
     assert quiet.returncode == 0 and "rodnet: t = " not in quiet.stderr
+
+
+def test_a_failed_static_run_is_told_by_its_load_factor(capsys: pytest.CaptureFixture) -> None:
+    """A static frame's time is its load factor: the report says so, not ``t = ... s``."""
+    from types import SimpleNamespace
+
+    from rodnet.cli import _report
+    for kind, said in (("static", "up to load factor 0.7917 are"), ("dynamic", "up to t = 0.7917 s")):
+        summary = {"frames": 3, "simulated_time_s": 0.79166, "scene": {"simulation": {"type": kind}}}
+        _report(SimpleNamespace(status="failed", message="no static equilibrium found",
+                                summary=summary, directory="out"))
+        assert said in capsys.readouterr().err

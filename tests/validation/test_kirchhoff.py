@@ -124,3 +124,16 @@ def test_kirchhoff_net_invariants(tmp_path: Path) -> None:
     assert np.diff(energy).max() <= 1e-6 * energy[0]
     assert energy[-1] < energy[0]
     assert bending > 1e-6 * size
+
+
+@pytest.mark.parametrize("model", ["kirchhoff", "lumped"])
+def test_a_moment_is_refused_naming_the_model(model: str) -> None:
+    from rodnet.errors import SceneError
+    scene = BEAM.format(duration=0.01, elements=4, frame_interval=0.01).replace(
+        'type = "kirchhoff"', f'type = "{model}"') + \
+        '[[loads]]\nnode = "beam:2"\nmoment = [0.0, 1.0, 0.0]\n'
+    with pytest.raises(SceneError) as refused:
+        prepare(scene_from_toml(scene))
+    label = "Kirchhoff threads" if model == "kirchhoff" else "the lumped model"
+    assert "loads[0].moment" in str(refused.value) and label in str(refused.value)
+    assert "model.type = 'cosserat'" in str(refused.value)
