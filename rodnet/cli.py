@@ -19,6 +19,11 @@ if TYPE_CHECKING:
 EXIT_BAD_INPUT, EXIT_FAILED = 2, 1
 
 
+SOURCE = Path(__file__).resolve().parents[1]
+"""The source tree rodnet runs from (an editable install): its ``validation/cases`` and
+``tests`` are what ``rodnet validate`` runs, from any working directory."""
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="rodnet", description=(
         "Tether-net simulation: Cosserat rod threads and a lumped-parameter reference."))
@@ -33,8 +38,8 @@ def _parser() -> argparse.ArgumentParser:
     demo.add_argument("--quick", action="store_true",
                       help="the lumped reference alone (a few seconds)")
     val = sub.add_parser("validate", help="run the validation cases and write a report")
-    val.add_argument("--cases", type=Path, default=Path("validation/cases"),
-                     help="folder of cases (default: validation/cases)")
+    val.add_argument("--cases", type=Path, default=SOURCE / "validation" / "cases",
+                     help="folder of cases (default: the source tree's validation/cases)")
     val.add_argument("-o", "--output", type=Path, default=Path("validation/reports"),
                      help="folder of the table validation.md (default: validation/reports)")
     val.add_argument("--fast", action="store_true", help="skip the cases marked slow")
@@ -263,11 +268,13 @@ def _validate_command(args: argparse.Namespace) -> int:
     quick = args.fast or (args.report is not None and not args.slow)
     status, verdict, report = _validate(args.cases, args.output, quick, args.report)
     tests = "not run"
-    if status != EXIT_BAD_INPUT and not args.no_tests and not quick and Path("tests").is_dir():
+    if status != EXIT_BAD_INPUT and not args.no_tests and not quick and \
+            (SOURCE / "tests").is_dir():
         import subprocess
 
         print("rodnet: running the slow validation tests (pytest -m slow tests)", file=sys.stderr)
-        done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-m", "slow", "tests"])
+        done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-m", "slow", "tests"],
+                              cwd=SOURCE)
         tests = "passed" if done.returncode in (0, 5) else "FAILED"
         status = status or (0 if tests == "passed" else EXIT_FAILED)
         verdict += f"; slow validation tests {tests}"

@@ -79,3 +79,14 @@ def test_bench_refuses_two_studies_at_once(tmp_path: Path, capsys: pytest.Captur
     assert done.value.code == 2
     assert "--defaults: not allowed with argument --quick" in capsys.readouterr().err
     assert not (tmp_path / "bench").exists()
+
+
+def test_validate_finds_its_cases_from_any_folder(tmp_path: Path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """``rodnet validate`` run outside the source tree found no case ("no validation cases
+    under validation/cases"): its default is the source tree's folder."""
+    from rodnet.cli import _parser
+    from rodnet.validate import case_folders
+
+    monkeypatch.chdir(tmp_path)
+    cases = _parser().parse_args(["validate"]).cases
+    assert cases.is_absolute() and len(case_folders(cases)) >= 6
