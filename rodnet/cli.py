@@ -169,6 +169,10 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:
         sys.stdout = open(os.devnull, "w")   # noqa: SIM115  (Python flushes stdout at exit)
         return EXIT_FAILED
+    except KeyboardInterrupt:   # before a run's own handling starts (loading, compiling)
+        print("rodnet: interrupted (Ctrl-C) before the run started; nothing was written",
+              file=sys.stderr)
+        return 128 + int(signal.SIGINT)
 
 
 def _command(argv: list[str] | None) -> int:
@@ -236,6 +240,8 @@ def _command(argv: list[str] | None) -> int:
 def _run_one(scene, out: Path | None, args: argparse.Namespace, movie: bool):  # type: ignore[no-untyped-def]
     """Run ``scene`` into ``out``, draw its figures, print its report; returns the exit status
     (0 ok, 1 failed, 2 bad input, 128 + signal when stopped) and the result."""
+    import numpy as np
+
     from rodnet.errors import SceneError
     from rodnet.run import run
     from rodnet.viz.figures import draw_run_figures
@@ -245,6 +251,17 @@ def _run_one(scene, out: Path | None, args: argparse.Namespace, movie: bool):  #
     except SceneError as exc:
         print(f"rodnet: bad input: {exc}. Nothing was run and no output was written.", file=sys.stderr)
         return EXIT_BAD_INPUT, None
+    except (ArithmeticError, ValueError, MemoryError, np.linalg.LinAlgError) as exc:
+        if os.environ.get("RODNET_TRACEBACK"):
+            raise
+        folder = Path(out if out is not None else scene.output.directory)
+        kept = (f"the frames computed so far are in {folder}/, summary.json saying so"
+                if (folder / "summary.json").exists() else "nothing was written")
+        print(f"rodnet: the run stopped on an error the scene's checks did not catch: "
+              f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}. Look for "
+              f"extreme values in the scene (a stiffness, size or duration many orders off); "
+              f"{kept} (set RODNET_TRACEBACK=1 for the traceback)", file=sys.stderr)
+        return EXIT_FAILED, None
     warnings = list(result.summary.get("warnings", [])) + draw_run_figures(result, scene.output,
                                                                            movie=movie)
     if args.threads is not None and result.summary.get("threads", args.threads) < args.threads:

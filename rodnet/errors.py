@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -53,6 +54,16 @@ def shown(value: Any) -> str:
     if isinstance(value, dict):
         return "{" + ", ".join(f"{k} = {shown(v)}" for k, v in value.items()) + "}"
     return repr(value)
+
+
+def at_most(limit: float) -> str:
+    """``limit`` written with 3 significant digits, rounded down: a bound a user can copy into
+    the scene (``6.38e-05`` for 6.3849e-05, where ``:.3g`` would round up past it)."""
+    text = f"{limit:.3g}"
+    if float(text) > limit > 0.0:
+        digit = 10.0 ** (math.floor(math.log10(limit)) - 2)
+        text = f"{math.floor(limit / digit) * digit:.3g}"
+    return text
 
 
 class SimulationFailed(RuntimeError):

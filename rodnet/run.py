@@ -14,11 +14,12 @@ and its initial state, :data:`INTEGRATORS` picks the integrator by name, and the
 from __future__ import annotations
 
 import dataclasses
+import math
 import signal
 import threading
 import time
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
@@ -122,11 +123,47 @@ def prepare(scene: Scene) -> Prepared:
         _check_supported(built.system, built.structure, scene)
         times = np.arange(1, scene.simulation.load_steps + 1) / scene.simulation.load_steps
         return Prepared(scene, built, times, times, np.zeros(0))
+    _check_run_size(scene, built)
     frames = frame_times(scene.simulation.duration, scene.output.frame_interval)
     if scene.initial is not None and scene.initial.from_ is not None:
         built, frames = _restart(scene, built, frames)
     breaks = _breaks(frames, scene)
     return Prepared(scene, built, np.union1d(frames, breaks), frames, breaks)
+
+
+FRAME_MEMORY = 8 * 2**30
+"""The most memory [bytes] the saved frames of a run may take (positions and velocities alone);
+result.npz takes as much on disk."""
+
+MAX_EXPLICIT_STEPS = 1e10
+"""The most steps an explicit run may plan (at a microsecond each, about three hours)."""
+
+
+def _check_run_size(scene: Scene, built: Built) -> None:
+    """Refuse a dynamic run whose saved frames would not fit in memory (a duration written in
+    milliseconds as seconds) or whose explicit stability limit asks for more than
+    :data:`MAX_EXPLICIT_STEPS` steps (a stiffness written many orders too high)."""
+    sim = scene.simulation
+    frames = sim.duration / scene.output.frame_interval + 1.0
+    size = frames * 48.0 * built.system.n_dof
+    if size > FRAME_MEMORY:
+        raise SceneError("output.frame_interval", scene.output.frame_interval,
+                         f"saves {frames:.3g} frames over simulation.duration = {sim.duration:g} s, "
+                         f"about {size / 2**30:.3g} GiB of positions and velocities alone (at most "
+                         f"{FRAME_MEMORY / 2**30:g} GiB): raise output.frame_interval or shorten "
+                         "simulation.duration")
+    control = built.system.control
+    if scene.integrator != "explicit" or control is None or not sim.adaptive:
+        return
+    step = control.stable_step * sim.explicit_safety
+    steps = sim.duration / step if step > 0.0 else math.inf
+    if not steps <= MAX_EXPLICIT_STEPS:
+        raise SceneError("simulation.integrator", "explicit",
+                         f"the explicit stability limit of this scene is {control.stable_step:.3g} "
+                         f"s, so simulation.duration = {sim.duration:g} s would take {steps:.3g} "
+                         f"steps (at most {MAX_EXPLICIT_STEPS:.0e}): a thread far too stiff for its "
+                         "lightest node (check the materials' youngs_modulus, axial_stiffness and "
+                         "viscosity, and the masses), or use an implicit integrator")
 
 
 def _restart(scene: Scene, built: Built, frames: NDArray[np.float64]
@@ -349,21 +386,24 @@ def run(scene: Scene, directory: str | Path | None = None, *, progress: bool | N
     """
     p = prepare(scene)
     n_threads = use_threads(p.system.parallel_work(), threads)
-    out = output_directory(directory if directory is not None else scene.output.directory,
-                           "output.directory" if directory is None else "-o (output directory)")
-    structure = p.structure
-    vtk = VtkSeries(out, structure.segments, p.system.surfaces(), thread=structure.thread) \
-        if scene.output.vtk else None
-    dynamic = scene.simulation.type == "dynamic"
-    checks = _energy_checks(p) + [p.system.check_frame]
-    recorder = Recorder(_frame_function(p), vtk, checks, skip_first=not dynamic,
-                        advice=_stability_advice(p), only={float(t) for t in p.frames})
-    bar = Progress(scene.simulation.duration, enabled=progress)
-    status, message, stats = "ok", "", StepStats()
-    integrate = INTEGRATORS[scene.integrator] if dynamic else _static
-    start = time.perf_counter()
-    stopped_by = None
-    with _stop_on_signals() as stop, compile_timer() as compiling:
+    with ExitStack() as context:   # a stop from here on keeps what was computed and says so
+        stop = context.enter_context(_stop_on_signals())
+        out = output_directory(directory if directory is not None else scene.output.directory,
+                               "output.directory" if directory is None else "-o (output directory)")
+        (out / "summary.json").unlink(missing_ok=True)   # an earlier run's: not this one's
+        structure = p.structure
+        vtk = VtkSeries(out, structure.segments, p.system.surfaces(), thread=structure.thread) \
+            if scene.output.vtk else None
+        dynamic = scene.simulation.type == "dynamic"
+        checks = _energy_checks(p) + [p.system.check_frame]
+        recorder = Recorder(_frame_function(p), vtk, checks, skip_first=not dynamic,
+                            advice=_stability_advice(p), only={float(t) for t in p.frames})
+        bar = Progress(scene.simulation.duration, enabled=progress)
+        status, message, stats = "ok", "", StepStats()
+        integrate = INTEGRATORS[scene.integrator] if dynamic else _static
+        start = time.perf_counter()
+        stopped_by = None
+        compiling = context.enter_context(compile_timer())
         try:
             stats = integrate(p, stop.checked(recorder), stop.checked(bar), stats)
         except SimulationFailed as exc:
@@ -459,6 +499,9 @@ def _stop_on_signals() -> Iterator[StopRequest]:
 
 def _stability_advice(p: Prepared) -> str:
     """What to change when a run turns unstable."""
+    if p.scene.simulation.type == "static":
+        return ("a static run's frames are its load factors (t = 1 the full load): use more "
+                "simulation.load_steps, or check that the structure can carry the load")
     if p.scene.integrator == "rk45":
         return "set a smaller simulation.rtol"
     if p.scene.integrator != "explicit":

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+import os
 import json
 import subprocess
 import sys
@@ -740,3 +741,38 @@ def test_the_scene_in_the_summary_runs_the_same_model(tmp_path: Path, model: str
     assert recorded[0] == recorded[1]
     np.testing.assert_array_equal(again.arrays["positions"], first.arrays["positions"])
     assert again.arrays["positions"].shape == first.arrays["positions"].shape
+
+
+def test_a_run_too_large_to_keep_or_to_step_is_refused_before_it_starts(tmp_path: Path) -> None:
+    """A duration written in milliseconds as seconds asked numpy for 7.45 GiB of frame times
+    and ended in a traceback; a stiffness many orders too high ended in an overflow inside the
+    explicit loop. Both are bad input now, and nothing is written."""
+    from rodnet.errors import SceneError
+
+    too_long = small_net_toml(duration=1e7)
+    with pytest.raises(SceneError, match=r"output\.frame_interval = 0\.01: saves 1e\+09 frames"):
+        run(scene_from_toml(too_long), tmp_path / "long", progress=False)
+    stiff = small_net_toml(duration=0.02).replace("[[materials]]", "[[materials]]\naxial_stiffness = 1e30")
+    with pytest.raises(SceneError, match=r"simulation\.integrator = 'explicit': the explicit "
+                                         r"stability limit of this scene is"):
+        run(scene_from_toml(stiff), tmp_path / "stiff", progress=False)
+    assert not (tmp_path / "long").exists() and not (tmp_path / "stiff").exists()
+
+
+def test_a_frame_interval_longer_than_the_run_still_saves_its_end(tmp_path: Path) -> None:
+    r = run(scene_from_toml(small_net_toml(duration=0.02).replace(
+        "frame_interval = 0.01", "frame_interval = 1.0e8")), tmp_path / "o", progress=False)
+    assert r.status == "ok" and list(r.arrays["time"]) == [0.0, 0.02] and r.summary["steps"] > 0
+
+
+def test_an_error_no_check_caught_is_one_paragraph(tmp_path: Path) -> None:
+    """An overflow while the model is built (a diameter of 1e300 m) was a traceback."""
+    scene = tmp_path / "net.toml"
+    scene.write_text(small_net_toml(duration=0.02).replace("diameter = ", "diameter = 1e300 #"))
+    done = subprocess.run([sys.executable, "-m", "rodnet", "run", str(scene), "-o",
+                           str(tmp_path / "o")], capture_output=True, text=True, cwd=tmp_path,
+                          env={k: v for k, v in os.environ.items() if k != "RODNET_TRACEBACK"})
+    assert done.returncode == 1, done.stderr
+    assert "Traceback" not in done.stderr
+    assert "an error the scene's checks did not catch: OverflowError" in done.stderr
+    assert "nothing was written" in done.stderr and not (tmp_path / "o").exists()

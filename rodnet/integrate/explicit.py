@@ -102,24 +102,38 @@ def integrate_explicit(system: System, state: State, times: NDArray[np.float64],
     on_frame(float(times[0]), state)
     for t_start, t_end in zip(times[:-1], times[1:]):
         n, h = whole_steps(t_start, t_end, control.dt)
-        if nodes_only:
-            done = march_nodes(x, v, float(t_start), float(t_end), n, h, problem, work.f_node)
-        else:
-            done = loop(x, quat, v, W, bodies, float(t_start), float(t_end), n, h, problem,
-                        control, work)
-        stats.function_evaluations += done.evaluations
-        state.friction_work += done.friction_work
-        if rods:
-            stats.max_element_rotation = max(stats.max_element_rotation or 0.0, done.phi_max)
-        finite = np.isfinite(v).all() and np.isfinite(W).all()
-        if done.status == 0 and finite:  # a failed call's steps and peak are the divergence's
-            if done.steps:
-                stats.record_steps(done.steps, done.h_min, done.h_max)
-            stats.max_tension = max(stats.max_tension, done.peak)
-        else:
-            stats.steps += done.steps
-            raise SimulationFailed(_failure(done, h, control, problem))
+        pieces = -(-n // CALL_STEPS)
+        ends = [0] + [round(i * n / pieces) for i in range(1, pieces + 1)]
+        for k in range(pieces):   # one call per frame, unless it would run for minutes
+            a = float(t_start) if k == 0 else float(t_start) + ends[k] * h
+            b = float(t_end) if k == pieces - 1 else float(t_start) + ends[k + 1] * h
+            steps = ends[k + 1] - ends[k]
+            if nodes_only:
+                done = march_nodes(x, v, a, b, steps, h, problem, work.f_node)
+            else:
+                done = loop(x, quat, v, W, bodies, a, b, steps, h, problem, control, work)
+            stats.function_evaluations += done.evaluations
+            state.friction_work += done.friction_work
+            if rods:
+                stats.max_element_rotation = max(stats.max_element_rotation or 0.0, done.phi_max)
+            finite = np.isfinite(v).all() and np.isfinite(W).all()
+            if done.status == 0 and finite:  # a failed call's steps and peak are the divergence's
+                if done.steps:
+                    stats.record_steps(done.steps, done.h_min, done.h_max)
+                stats.max_tension = max(stats.max_tension, done.peak)
+            else:
+                stats.steps += done.steps
+                raise SimulationFailed(_failure(done, h, control, problem))
+            if k < pieces - 1 and on_progress is not None:   # progress, and a stop, between
+                on_progress(b, h, stats)
         on_frame(float(t_end), state)
         if on_progress is not None:
             on_progress(float(t_end), h, stats)
     return stats
+
+
+CALL_STEPS = 500_000
+"""The most steps of one call of the compiled loop: a frame interval of more steps is split, so
+that progress is shown and a stop request is acted on within seconds (a signal cannot interrupt
+the compiled loop). Fixed steps are the same to the last bit; the rods' step control (C50)
+starts afresh at each call."""

@@ -46,6 +46,6 @@ def frame_times(duration: float, frame_interval: float) -> NDArray[np.float64]:
     """Times of the saved frames: 0, frame_interval, ..., and ``duration`` itself, (F,)."""
     n = int(np.floor(duration / frame_interval + 1e-9))
     times = np.arange(n + 1) * frame_interval
-    if duration - times[-1] > 1e-9 * frame_interval:
+    if duration - times[-1] > 1e-9 * min(frame_interval, duration):
         times = np.append(times, duration)
     return times

@@ -19,7 +19,7 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from rodnet.config import Scene
-from rodnet.errors import SceneError
+from rodnet.errors import SceneError, at_most
 from rodnet.kernels import explicit as kx
 from rodnet.kernels.cable import cable_secant_tangents, cable_tangents, element_blocks
 from rodnet.kernels.cosserat_compiled import RodElements, no_rod_elements
@@ -384,7 +384,7 @@ def lumped_explicit_plan(model: LumpedModel, v0: FloatArray, dt: float, adaptive
     limit = model.stable_step()
     if not adaptive and dt > limit:
         raise SceneError("simulation.dt", dt, f"exceeds the explicit stability limit "
-                         f"{limit:.3g} s of this scene; use dt <= {limit:.3g} "
+                         f"{limit:.3g} s of this scene; use dt <= {at_most(limit)} "
                          f"(about half of it for accurate snap loads) or adaptive = true")
     step = safety * limit if adaptive else dt
     return model, v0, kx.StepControl(step, step, 0.0, False, np.zeros(1), np.ones(1), limit,

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from rodnet.errors import SceneError
+from rodnet.errors import SceneError, at_most
 from rodnet.kernels import so3
 from rodnet.kernels.cosserat import internal_force_and_tangents_numpy
 from rodnet.kernels.explicit import StepControl
@@ -261,7 +261,7 @@ def explicit_plan(model: CosseratModel, dt: float, adaptive: bool, safety: float
                              f"(C49): with the rotations held, the translations' stability limit "
                              f"is {limit_t:.3g} s, and the rotations may run at "
                              f"{ROTATION_SAFETY:g} of theirs; use dt <= "
-                             f"{ROTATION_SAFETY * limit_t:.3g} s (about half of it for accurate "
+                             f"{at_most(ROTATION_SAFETY * limit_t)} s (about half of it for accurate "
                              "snap loads), adaptive = true, or "
                              "simulation.rotary_inertia_scaling = false with a smaller dt")
         target = frequency_for_step(h_t, bound.tau, ROTATION_SAFETY) ** 2
@@ -271,7 +271,7 @@ def explicit_plan(model: CosseratModel, dt: float, adaptive: bool, safety: float
     h = safety * stable if adaptive else dt
     if not adaptive and dt > stable:
         raise SceneError("simulation.dt", dt, f"exceeds the explicit stability limit {stable:.3g} s "
-                         f"of this scene; use dt <= {stable:.3g} (about half of it for accurate "
+                         f"of this scene; use dt <= {at_most(stable)} (about half of it for accurate "
                          "snap loads) or adaptive = true")
     # bent elements stiffen: the step shrinks with the largest rotation in the structure (C50)
     inv_sqrt = bound.inverse_sqrt_mass(inertia)
