@@ -81,10 +81,8 @@ def apply_overrides(data: dict[str, Any], overrides: typing.Sequence[str]) -> di
         for i, part in enumerate(parts[:-1]):
             if isinstance(node, list):
                 if not part.isdigit() or int(part) >= len(node):
-                    shown_key = "".join(f"[{p}]" if p.isdigit() else ("." if j else "") + p
-                                        for j, p in enumerate(parts[:i + 1]))
-                    raise SceneError(shown_key, int(part) if part.isdigit() else part,
-                                     f"index must be 0..{len(node) - 1} in this scene")
+                    raise SceneError("--set", item, f"the index [{part}] of {parts[i - 1]} must "
+                                     f"be an integer 0..{len(node) - 1} in this scene")
                 node = node[int(part)]
             else:
                 if parts[i + 1].isdigit() and not isinstance(node.get(part), list):

@@ -50,7 +50,10 @@ def test_bad_values_are_named(override: str, key: str, allowed: str) -> None:
 @pytest.mark.parametrize("override,message", [
     ("net.packing=true", "net.packing = true: must be a number"),
     ("net.direction=[0, nan, 1]", "net.direction[1] = nan: must be a finite number"),
-    ("materials[3].density=1.0", "materials[3] = 3: index must be 0..0"),
+    ("materials[3].density=1.0", "--set = 'materials[3].density=1.0': the index [3] of materials "
+                                 "must be an integer 0..0 in this scene"),
+    ("materials[x].density=1", "--set = 'materials[x].density=1': the index [x] of materials "
+                               "must be an integer 0..0"),
     ("simulation.gravity=-9.81", "simulation.gravity = -9.81: must be an array of 3 numbers"),
     ("materials.density=1000", "materials.density = 1000: names an array of tables: give the "
                                "entry's index, as in materials[0].density"),
