@@ -678,7 +678,9 @@ def _warnings(p: Prepared, stats: StepStats, monitors: dict[str, float],
         e = stats.extra
         out.append(f"between load factors {e['jump_from']:.4g} and {e['jump_to']:.4g} the "
                    f"equilibrium jumped (a node moved {e['jump_move']:.3g} m in one load step, "
-                   "far more per load than before): the load passed a limit point (a "
+                   + ("far more than the linear response at the unloaded state says"
+                      if e["jump_from"] == 0.0 else "far more per load than before")
+                   + "): the load passed a limit point (a "
                    "snap-through) or a bifurcation (buckling), and the states from there on are "
                    "on another branch of equilibria; the path between them was not followed")
     if stats.extra.get("unstable"):

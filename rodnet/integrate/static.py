@@ -52,7 +52,9 @@ def solve_static(system: System, state: State, load_steps: int, options: NewtonO
     on_frame(0.0, state)
     solve = _Solve(system, options, LinearSolver(), scale, stats, history)
     done, target_steps = 0.0, [k / load_steps for k in range(1, load_steps + 1)]
-    rate = 0.0   # the largest node motion per load factor of the last load step [m]
+    # the largest node motion per load factor of the last load step [m]; before the first, the
+    # linear response's, against which a jump is taken at FIRST_JUMP_FACTOR
+    rate = _linear_rate(system, q0)
     for target in target_steps:
         q_step = q
         lam, halvings = done, 0
@@ -157,6 +159,36 @@ steps), 1.63 (20); a jump past it 4.6 - 8.8 (the square-root path of a limit poi
 equal steps: at most about 2.4)."""
 
 JUMP_SIZE = 1e-3
+
+
+FIRST_JUMP_FACTOR = 10.0
+"""The first load step is taken for a jump where it moves a node this many times farther than
+the linear response at the unloaded state says (a column loaded far past its buckling load
+in one step flips over: 1e4 times). Softening before a limit point reached smoothly stays well
+below it (Williams' toggle at 99.5 % of its limit load: about 2.5)."""
+
+
+def _linear_rate(system: System, q0: Configuration) -> float:
+    """The linear response's largest node motion per load factor at ``q0`` [m] (the load's
+    forces and the tangent at the unloaded state), divided by :data:`FIRST_JUMP_FACTOR` over
+    :data:`JUMP_FACTOR`, so that :func:`_watch_jump` compares the first load step with it; 0
+    where the tangent is singular (a slack cable, a mechanism held by its load)."""
+    free, zero = system.free, np.zeros(system.n_dof)
+    g1, K, _ = system.tangents(q0, zero, STATIC_TIME, 1.0)
+    g0 = system.generalized_force(q0, zero, STATIC_TIME, 0.0)
+    K = K.tocsc()   # on the free DOFs
+    try:
+        with np.errstate(all="ignore"):
+            du = spla.splu(K).solve(-(g1 - g0)[free])
+    except RuntimeError:   # exactly singular
+        return 0.0
+    dq = np.zeros(system.n_dof)
+    dq[free] = du
+    move = system.retract(q0, dq).x - q0.x
+    largest = float(np.max(np.linalg.norm(move, axis=1), initial=0.0))
+    if not np.isfinite(largest) or largest > 1e6 * system.length_scale:
+        return 0.0
+    return largest * FIRST_JUMP_FACTOR / JUMP_FACTOR
 
 
 def _watch_jump(system: System, q: Configuration, q_new: Configuration, lam: float,

@@ -940,3 +940,53 @@ diameter = 0.01""", 1.0, [0.0, 3.0, -2.0], load_steps=1)
     np.testing.assert_allclose(np.linalg.norm(moments[:, 1:], axis=1), load * (1.0 - middle),
                                rtol=2e-3)
     assert np.abs(moments[:, 0]).max() < 1e-9 * load                  # no twist
+
+
+COLUMN = """
+[simulation]
+type = "static"
+load_steps = {steps}
+[model]
+type = "cosserat"
+axial = "linear"
+[[materials]]
+name = "steel"
+density = 7800.0
+youngs_modulus = 2.0e11
+poisson_ratio = 0.3
+diameter = 0.01
+[[rods]]
+name = "beam"
+material = "steel"
+points = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]
+elements = 5
+[[supports]]
+node = "beam:start"
+fix = "clamp"
+[[loads]]
+node = "beam:end"
+force = {force}
+[output]
+vtk = false
+"""
+"""A clamped steel column, 1 m x 10 mm (Euler load pi^2 EI / 4 L^2 = 242 N), an outside
+check's scene."""
+
+
+def test_a_first_load_step_far_past_buckling_says_the_path_jumped(tmp_path: Path) -> None:
+    """1e5 N along the column's axis, 400 times its buckling load, in two load steps: the
+    first step lands on the column flipped over (its tip at x = -0.93 m, in tension), which no
+    earlier load step could show, so the jump is taken against the linear response at the
+    unloaded state; a cantilever bent far into its elastica by a tip force in one step
+    (stiffening, below its linear deflection) is not a jump."""
+    flipped = run(scene_from_toml(COLUMN.format(steps=2, force="[-1.0e5, 0.0, 0.0]")),
+                  tmp_path / "column", progress=False)
+    assert flipped.status == "ok", flipped.message
+    assert flipped.arrays["positions"][-1, -1, 0] < 0.0
+    told = [w for w in flipped.summary["warnings"] if "jumped" in w]
+    assert told and "between load factors 0 and 0.5" in told[0] and "linear response" in told[0]
+    bent = run(scene_from_toml(COLUMN.format(steps=1, force="[0.0, 0.0, -300.0]")),
+               tmp_path / "bent", progress=False)
+    assert bent.status == "ok", bent.message
+    assert bent.arrays["positions"][-1, -1, 2] < -0.3          # far into the nonlinear range
+    assert not [w for w in bent.summary["warnings"] if "jumped" in w]
