@@ -176,7 +176,7 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
         "Pa", "`E` > 0. `EA = E A` and `EI = E I`, unless overridden; also sets the retardation "
         "time `tau = viscosity / E`."),
     "materials.diameter": (
-        "m", "`d` > 0 of the solid circular section: `A = pi d^2 / 4`, `I = pi d^4 / 64`, "
+        "m", "`d` >= 1e-9 of the solid circular section: `A = pi d^2 / 4`, `I = pi d^4 / 64`, "
         "`J = 2 I`."),
     "materials.poisson_ratio": (
         "-", "`nu` in (-1, 0.5): `G = E / (2 (1 + nu))`; give either this or `shear_modulus`. "
@@ -235,8 +235,8 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
     "rods.material": ("", "Name of a `[[materials]]` entry; required."),
     "rods.points": (
         "m", "Polyline of the stress-free centreline, at least two points, consecutive points "
-        "distinct, never turning straight back (its members would overlap). The rod starts in "
-        "this shape, free of stress."),
+        "at least 1e-9 m apart, within 1e9 m of the origin, never turning straight back (its "
+        "members would overlap). The rod starts in this shape, free of stress."),
     "rods.elements": (
         "", "Elements along the whole rod, at least one per polyline segment; spread by arc "
         "length, every polyline vertex kept as a node."),
@@ -556,6 +556,8 @@ def render() -> str:
         for f in dataclasses.fields(cls):
             key = config.toml_key(f.name)
             unit, text = DESCRIPTIONS.get(f"{name}.{key}", ("", "(no description)"))
+            if name == "materials" and f.name in config.MATERIAL_LIMITS:
+                text += f" At most {config.MATERIAL_LIMITS[f.name]:g}."
             default = default_text(f)
             default = default if default in ("required", "not set") else f"`{_cell(default)}`"
             kind = type_name(hints[f.name])

@@ -39,6 +39,25 @@ def _positive(obj: Any, *keys: str) -> None:
             require(math.isfinite(value) and value > 0, key, value, "must be a finite number > 0")
 
 
+MATERIAL_LIMITS = {"density": 1e6, "youngs_modulus": 1e15, "diameter": 1e3,
+                   "shear_modulus": 1e15, "viscosity": 1e15, "axial_stiffness": 1e20,
+                   "shear_stiffness": 1e20, "bending_stiffness": 1e20, "torsional_stiffness": 1e20,
+                   "mass_per_length": 1e6, "rotary_inertia_per_length": 1e6}
+"""The largest value of each material key, orders of magnitude above any real thread or rod
+(osmium 2.3e4 kg/m^3, diamond 1.2e12 Pa): far beyond them the section's properties and the
+stability limit leave the floating-point range (an outside check's diameter of 1e150 m made
+every node's mass infinite)."""
+
+
+def _at_most(obj: Any, limits: dict[str, float]) -> None:
+    for key, limit in limits.items():
+        value = getattr(obj, key)
+        if value is not None:
+            require(value <= limit, key, value, f"must be at most {limit:g}: far beyond any "
+                    "material, and beyond what the section's properties can hold in floating "
+                    "point (a unit written wrongly?)")
+
+
 def _non_negative(obj: Any, *keys: str) -> None:
     for key in keys:
         value = getattr(obj, key)
@@ -156,6 +175,9 @@ class MaterialSpec:
                   "axial_stiffness", "shear_stiffness", "bending_stiffness",
                   "torsional_stiffness", "mass_per_length", "rotary_inertia_per_length")
         _non_negative(self, "viscosity")
+        _at_most(self, MATERIAL_LIMITS)
+        require(self.diameter >= 1e-9, "diameter", self.diameter,
+                "must be at least 1e-9 m (a unit written wrongly?)")
         require(self.name != "", "name", self.name, "must be a non-empty string")
         if self.poisson_ratio is not None:
             require(-1.0 < self.poisson_ratio < 0.5, "poisson_ratio", self.poisson_ratio,
@@ -274,9 +296,13 @@ class RodSpec:
                 "must be a non-empty string without ':'")
         require(len(self.points) >= 2, "points", self.points,
                 "needs at least two points (a rod of one node has no element)")
+        require(all(abs(c) <= 1e9 for p in self.points for c in p), "points", self.points,
+                "must lie within 1e9 m of the origin (a unit written wrongly?)")
         for a, b in zip(self.points[:-1], self.points[1:]):
             require(math.dist(a, b) > 0.0, "points", self.points,
                     "consecutive points must differ (zero-length segment)")
+            require(math.dist(a, b) >= 1e-9, "points", self.points,
+                    "consecutive points must be at least 1e-9 m apart (a unit written wrongly?)")
         for i, (a, b, c) in enumerate(zip(self.points[:-2], self.points[1:-1], self.points[2:])):
             u = [q - p for p, q in zip(a, b)]
             w = [q - p for p, q in zip(b, c)]

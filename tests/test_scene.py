@@ -55,6 +55,10 @@ def test_bad_values_are_named(override: str, key: str, allowed: str) -> None:
     ("materials[x].density=1", "--set = 'materials[x].density=1': the index [x] of materials "
                                "must be an integer 0..0"),
     ("simulation.gravity=-9.81", "simulation.gravity = -9.81: must be an array of 3 numbers"),
+    ("materials[0].diameter=1e150", "materials[0].diameter = 1e+150: must be at most 1000"),
+    ("materials[0].youngs_modulus=1e100", "materials[0].youngs_modulus = 1e+100: must be at most "
+                                          "1e+15"),
+    ("materials[0].diameter=1e-300", "materials[0].diameter = 1e-300: must be at least 1e-9 m"),
     ("materials.density=1000", "materials.density = 1000: names an array of tables: give the "
                                "entry's index, as in materials[0].density"),
     ("rods[0].elements=5", "rods[0].elements = 5: indexes [[rods]], which this scene does not "
