@@ -781,3 +781,49 @@ def test_an_error_no_check_caught_is_one_paragraph(tmp_path: Path, capsys, monke
     err = capsys.readouterr().err
     assert "an error the scene's checks did not catch: OverflowError" in err
     assert "nothing was written" in err and "Traceback" not in err
+
+
+UNDAMPED_NET = """
+[simulation]
+duration = 0.3
+integrator = "explicit"
+explicit_safety = {safety}
+[model]
+type = "lumped"
+elements_per_thread = 2
+[[materials]]
+name = "kevlar"
+density = 1440.0
+youngs_modulus = 7.0e10
+diameter = 1.0e-3
+viscosity = 0.0
+[net]
+nodes_per_side = 5
+mesh_length = 0.5
+material = "kevlar"
+packing = 0.1
+corner_mass = 0.5
+corner_thread_length = 0.5
+launch_speed = 15.0
+launch_angle_deg = 40.0
+[output]
+frame_interval = 0.005
+vtk = false
+"""
+"""An outside check's undamped 5 x 5 net (its first snap at about 0.19 s)."""
+
+
+def test_an_undamped_explicit_net_that_gains_energy_says_so(tmp_path: Path) -> None:
+    """Undamped threads snapping at the default explicit step gain energy (this net: +45 %
+    over 1 s in the outside check), below the guard's 100 %; the run warns with the rise, and
+    at half the step the energy holds within the warning's 5 %."""
+    rises = {}
+    for safety in (0.5, 0.25):
+        r = run(scene_from_toml(UNDAMPED_NET.format(safety=safety)), tmp_path / str(safety),
+                progress=False)
+        assert r.status == "ok", r.message
+        energy = r.arrays["kinetic_energy"] + r.arrays["elastic_energy"]
+        rises[safety] = energy.max() / energy[0] - 1.0
+        told = [w for w in r.summary["warnings"] if "energy rose by" in w]
+        assert bool(told) == (rises[safety] > 0.05), (safety, rises[safety])
+    assert rises[0.5] > 0.05 > rises[0.25], rises

@@ -184,8 +184,9 @@ def refusal(scene: Scene) -> SceneError | None:
                           f"{_quoted(s.integrators)} only{why}{advice}")
     if scene.net is not None and scene.model.knots not in s.knots:
         why = f": {s.why['knots']}" if "knots" in s.why else ""
-        return SceneError("model.knots", scene.model.knots, f"{entry.label} need "
-                          f"{_quoted(s.knots)} knots{why}{advice}")
+        default = scene.model.knots == config.ModelSpec().knots
+        return SceneError("model.knots", scene.model.knots, ("(the default) " if default else "")
+                          + f"{entry.label} need {_quoted(s.knots)} knots{why}{advice}")
     return None
 
 
