@@ -382,9 +382,12 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
     # [initial]
     "initial.from": (
         "", "Folder of an earlier run of the same structure (same scene apart from loads, "
-        "steps, integrator, output and bodies) whose saved state starts this run: positions, "
-        "rotations, velocities and, for the explicit integrator, the bodies. Time continues from "
-        "the saved frame's time to `simulation.duration` (the end time). A static run's result "
+        "steps, integrator, output and bodies), relative to the working directory (not the "
+        "scene file), whose saved state starts this run: positions, rotations, velocities and, "
+        "for the explicit integrator, the bodies (a run with bodies restarts with the explicit "
+        "integrator only). Time continues from the saved frame's time to "
+        "`simulation.duration` (the end time); loads over time act as they do at those times "
+        "in the whole run. A static run's result "
         "starts a dynamic run from its equilibrium. Checked: the same numbers of nodes, rotation "
         "nodes and bodies. Everything else comes from this scene (materials, stress-free "
         "shape, `[[supports]]`, loads), so a structure can be held differently from the saved "

@@ -197,6 +197,7 @@ def _breaks(frames: NDArray[np.float64], scene: Scene) -> NDArray[np.float64]:
     1e-9 of the frame interval of a frame moved onto it: the steppers land on them, so no step
     straddles one (a pulse gives its impulse exactly)."""
     breaks = break_times(schedule_of(timings(scene)), float(frames[-1]))
+    breaks = breaks[breaks > frames[0]]   # a restart begins at its saved frame's time
     if not len(breaks):
         return breaks
     nearest = frames[np.abs(breaks[:, None] - frames[None, :]).argmin(axis=1)]
@@ -552,10 +553,10 @@ def _frame_function(p: Prepared) -> Callable[[float, State], dict[str, Any]]:
         frame = p.system.frame(STATIC_TIME if static else t, state)
         if static:   # the loads and gravity at the frame's load factor
             frame["potential_energy"] *= t
-        if len(nodes):
-            v = np.zeros_like(state.v) if static else state.v
-            frame["support_reactions"] = p.system.support_reactions(
-                state.q, v, STATIC_TIME if static else t, t if static else 1.0, nodes)
+        v = np.zeros_like(state.v) if static else state.v
+        frame["support_reactions"] = p.system.support_reactions(
+            state.q, v, STATIC_TIME if static else t, t if static else 1.0, nodes) \
+            if len(nodes) else np.zeros((0, 3))
         return frame
 
     return frame_of

@@ -51,8 +51,17 @@ def _thread(**kw: object) -> str:
     return THREAD.format(**values)
 
 
-@pytest.mark.parametrize("text", [small_net_toml(duration=0.3), _thread()],
-                         ids=["lumped net", "cosserat thread"])
+PULLED = _thread(model="lumped", fix="pin", extra=(
+    '[[loads]]\nnode = "thread:end"\nforce = [0.0, 0.0, 0.5]\n'
+    "table = [[0.0, 0.0], [0.05, 1.0], [0.1, 1.0], [0.1, 0.5], [0.16, -0.2]]\n"
+    '[[loads]]\nnode = "thread:5"\nforce = [0.0, 0.2, 0.0]\nstart = 0.03\nstop = 0.09\nramp = 0.02'))
+"""The thread pulled by loads that change in time, before and after the restart's frame (an
+outside check found a restart after a load's first change integrate again from that change:
+its first frame 3.15 m off)."""
+
+
+@pytest.mark.parametrize("text", [small_net_toml(duration=0.3), _thread(), PULLED],
+                         ids=["lumped net", "cosserat thread", "loads over time"])
 def test_a_restart_from_frame_k_reproduces_the_rest_of_the_run(tmp_path: Path,
                                                                text: str) -> None:
     whole = run(scene_from_toml(text), tmp_path / "whole", progress=False)

@@ -827,3 +827,12 @@ def test_an_undamped_explicit_net_that_gains_energy_says_so(tmp_path: Path) -> N
         told = [w for w in r.summary["warnings"] if "energy rose by" in w]
         assert bool(told) == (rises[safety] > 0.05), (safety, rises[safety])
     assert rises[0.5] > 0.05 > rises[0.25], rises
+
+
+def test_the_last_frame_is_at_duration_and_every_run_has_its_reactions(tmp_path: Path) -> None:
+    """6 x 0.05 s is 0.30000000000000004 in floating point: the last frame is stamped (and the
+    run ends) at duration itself; a scene without supports has support_reactions (F, 0, 3)."""
+    text = small_net_toml(duration=0.3).replace("frame_interval = 0.01", "frame_interval = 0.05")
+    r = run(scene_from_toml(text), tmp_path / "o", progress=False)
+    assert r.arrays["time"][-1] == 0.3 and len(r.arrays["time"]) == 7
+    assert r.arrays["support_reactions"].shape == (7, 0, 3)

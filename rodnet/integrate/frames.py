@@ -48,4 +48,6 @@ def frame_times(duration: float, frame_interval: float) -> NDArray[np.float64]:
     times = np.arange(n + 1) * frame_interval
     if duration - times[-1] > 1e-9 * min(frame_interval, duration):
         times = np.append(times, duration)
+    else:
+        times[-1] = duration   # not 6 x 0.05 = 0.30000000000000004
     return times
