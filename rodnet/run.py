@@ -562,6 +562,28 @@ def _frame_function(p: Prepared) -> Callable[[float, State], dict[str, Any]]:
     return frame_of
 
 
+def _without_effect(p: Prepared) -> list[str]:
+    """A warning for keys the scene sets to no effect: ``[contact]`` without bodies, a load
+    that starts at or after the run's end (dynamic runs), ``rotation_center`` without
+    ``angular_velocity``."""
+    scene, out = p.scene, []
+    if scene.contact is not None and not scene.bodies:
+        out.append("[contact] has no effect: the scene has no [[bodies]] (threads do not "
+                   "touch each other)")
+    if scene.simulation.type == "dynamic":
+        end = scene.simulation.duration
+        for kind, entries in (("loads", scene.loads), ("line_loads", scene.line_loads)):
+            for i, load in enumerate(entries):
+                if load.start >= end:
+                    out.append(f"{kind}[{i}].start = {load.start:g} s is not before "
+                               f"simulation.duration = {end:g} s: the load never acts")
+    for i, rod in enumerate(scene.rods):
+        if rod.rotation_center is not None and not any(rod.angular_velocity):
+            out.append(f"rods[{i}].rotation_center has no effect without "
+                       f"rods[{i}].angular_velocity")
+    return out
+
+
 def _shared_supports(p: Prepared) -> list[str]:
     """A warning for every node that more than one ``[[supports]]`` entry holds: their fixed
     DOFs are combined, which may not be what was meant (a pin and a clamp on one node make a
@@ -672,7 +694,7 @@ def _warnings(p: Prepared, stats: StepStats, monitors: dict[str, float],
                    f"does (no rotations in {label}: the thread turns freely about the node, "
                    "carrying no bending moment); use model.type = 'cosserat' with bending for a "
                    "clamped rod")
-    out += _shared_supports(p) + _loads_on_supports(p)
+    out += _shared_supports(p) + _loads_on_supports(p) + _without_effect(p)
     scale = p.built.rotary_inertia_scale
     turned = [f"loads[{i}].moment" for i, load in enumerate(p.scene.loads) if any(load.moment)] + \
         [f"rods[{i}].angular_velocity" for i, rod in enumerate(p.scene.rods)

@@ -836,3 +836,20 @@ def test_the_last_frame_is_at_duration_and_every_run_has_its_reactions(tmp_path:
     r = run(scene_from_toml(text), tmp_path / "o", progress=False)
     assert r.arrays["time"][-1] == 0.3 and len(r.arrays["time"]) == 7
     assert r.arrays["support_reactions"].shape == (7, 0, 3)
+
+
+def test_keys_set_to_no_effect_are_told(tmp_path: Path) -> None:
+    """An outside check found these accepted without a word."""
+    text = small_net_toml(duration=0.02) + (
+        '[contact]\nstiffness = 1.0e4\n[[loads]]\nnode = "net:knot:0"\nforce = [1.0, 0.0, 0.0]\n'
+        "start = 0.05\n")
+    r = run(scene_from_toml(text), tmp_path / "o", progress=False)
+    assert r.status == "ok", r.message
+    warnings = " | ".join(r.summary["warnings"])
+    assert "[contact] has no effect" in warnings
+    assert "loads[0].start = 0.05 s is not before simulation.duration = 0.02 s" in warnings
+    from tests.conftest import falling_thread_toml
+    rod = falling_thread_toml(duration=0.01).replace("elements = 20",
+                                                     "elements = 20\nrotation_center = [0.0, 0.0, 0.0]")
+    r = run(scene_from_toml(rod), tmp_path / "rod", progress=False)
+    assert any("rods[0].rotation_center has no effect" in w for w in r.summary["warnings"])
