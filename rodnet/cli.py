@@ -240,8 +240,6 @@ def _command(argv: list[str] | None) -> int:
 def _run_one(scene, out: Path | None, args: argparse.Namespace, movie: bool):  # type: ignore[no-untyped-def]
     """Run ``scene`` into ``out``, draw its figures, print its report; returns the exit status
     (0 ok, 1 failed, 2 bad input, 128 + signal when stopped) and the result."""
-    import numpy as np
-
     from rodnet.errors import SceneError
     from rodnet.run import run
     from rodnet.viz.figures import draw_run_figures
@@ -251,7 +249,7 @@ def _run_one(scene, out: Path | None, args: argparse.Namespace, movie: bool):  #
     except SceneError as exc:
         print(f"rodnet: bad input: {exc}. Nothing was run and no output was written.", file=sys.stderr)
         return EXIT_BAD_INPUT, None
-    except (ArithmeticError, ValueError, MemoryError, np.linalg.LinAlgError) as exc:
+    except (ArithmeticError, ValueError, MemoryError) as exc:   # numpy's LinAlgError too
         if os.environ.get("RODNET_TRACEBACK"):
             raise
         folder = Path(out if out is not None else scene.output.directory)

@@ -672,18 +672,21 @@ def _energy_rise(p: Prepared, arrays: dict[str, NDArray[Any]]) -> list[str]:
 
 
 def _warnings(p: Prepared, stats: StepStats, monitors: dict[str, float],
-              frames: int = 0) -> list[str]:
+              arrays: dict[str, NDArray[Any]]) -> list[str]:
     """What the user should know about a completed or failed run: a clamp on threads without
     rotations (it holds the node's position only, as a pin does: such threads pass no moment);
     a static equilibrium that is unstable (:func:`rodnet.integrate.static.unstable`);
     a rod element turned past the rotation stop (C52), where the stop's moment, not the
     section, resisted its rotation; a node held by more than one support entry; a load that
     its node's supports take whole; a net of rigid knots with one element per thread (shear
-    locking); rod elements turned inside out (C51); the midpoint rule with contact; moments or
-    spins on sections whose explicit rotary inertia was raised; a fixed step longer than the frame interval; an explicit step that the threads'
-    Kelvin-Voigt damping shortens more than :data:`VISCOUS_STEP_FACTOR` times.
-    ``monitors``: :data:`rodnet.io.recorder.MONITORS` over the ``frames`` saved."""
-    out = _viscous_step(p)
+    locking); keys set to no effect; rod elements turned inside out (C51); the midpoint rule
+    with contact; moments or spins on sections whose explicit rotary inertia was raised; an
+    explicit run whose energy rose (:func:`_energy_rise`); a fixed step longer than the frame
+    interval; an explicit step that the threads' Kelvin-Voigt damping shortens more than
+    :data:`VISCOUS_STEP_FACTOR` times. ``monitors``: :data:`rodnet.io.recorder.MONITORS` over
+    the saved frames ``arrays``."""
+    out = _viscous_step(p) + _energy_rise(p, arrays)
+    frames = len(arrays["time"])
     clamps = [i for i, support in enumerate(p.scene.supports)
               if support.dofs is None and support.fix == "clamp"]
     if clamps and not len(p.model.rotation_dofs()):
@@ -750,13 +753,13 @@ def _warnings(p: Prepared, stats: StepStats, monitors: dict[str, float],
     elif monitors.get("inside_out_elements_last", 0.0) > 0.0 or \
             monitors.get("inside_out_elements_frames", 0.0) > 0.1 * max(frames, 1):
         # a passing inversion (the reference deployment: at 5 of 301 frames, 4.7 N) is not told
-        scaled = p.built.rotary_inertia_scale is not None and p.scene.integrator == "explicit"
+        scaled = scale is not None and p.scene.integrator == "explicit"
         out.append(f"up to {inside_out} rod element(s) were inside out at saved frames (the "
                    "chord against the section's axis, FORMULATION.md C51): their sections did not "
                    "turn with their chords, and the regularising spring of 0.01 EA pulled on "
                    "chords shorter than their rest length, where a thread is slack"
                    + ("; the explicit integrator's raised rotary inertia (factor "
-                      f"{p.built.rotary_inertia_scale:.3g}) slows the sections: use an implicit "
+                      f"{scale:.3g}) slows the sections: use an implicit "
                       "integrator or simulation.rotary_inertia_scaling = false"
                       if scaled else "; use more elements (model.elements_per_thread, or "
                       "rods.elements) or shorter steps"))
@@ -802,7 +805,6 @@ def _summary(p: Prepared, arrays: dict[str, NDArray[Any]], stats: StepStats, sta
         "model": {"type": p.scene.model.type, "nodes": structure.n_nodes,
                   "elements": len(structure.segments), "dofs": p.system.n_dof},
         "nodes": structure.selectors, "metrics": metrics,
-        "warnings": _warnings(p, stats, monitors or {}, len(arrays["time"]))
-        + _energy_rise(p, arrays),
+        "warnings": _warnings(p, stats, monitors or {}, arrays),
         "scene": scene_as_dict(p.scene, unused_keys(p.scene)),
     }

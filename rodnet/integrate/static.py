@@ -54,7 +54,7 @@ def solve_static(system: System, state: State, load_steps: int, options: NewtonO
     done, target_steps = 0.0, [k / load_steps for k in range(1, load_steps + 1)]
     # the largest node motion per load factor of the last load step [m]; before the first, the
     # linear response's, against which a jump is taken at FIRST_JUMP_FACTOR
-    rate = _linear_rate(system, q0)
+    rate = _linear_rate(system, q0, loads)
     for target in target_steps:
         q_step = q
         lam, halvings = done, 0
@@ -168,18 +168,17 @@ in one step flips over: 1e4 times). Softening before a limit point reached smoot
 below it (Williams' toggle at 99.5 % of its limit load: about 2.5)."""
 
 
-def _linear_rate(system: System, q0: Configuration) -> float:
-    """The linear response's largest node motion per load factor at ``q0`` [m] (the load's
-    forces and the tangent at the unloaded state), divided by :data:`FIRST_JUMP_FACTOR` over
-    :data:`JUMP_FACTOR`, so that :func:`_watch_jump` compares the first load step with it; 0
-    where the tangent is singular (a slack cable, a mechanism held by its load)."""
-    free, zero = system.free, np.zeros(system.n_dof)
-    g1, K, _ = system.tangents(q0, zero, STATIC_TIME, 1.0)
-    g0 = system.generalized_force(q0, zero, STATIC_TIME, 0.0)
-    K = K.tocsc()   # on the free DOFs
+def _linear_rate(system: System, q0: Configuration, loads: FloatArray) -> float:
+    """The linear response's largest node motion per load factor at ``q0`` [m] (the forces
+    ``loads`` (n_dof,) that the full load adds, and the tangent at the unloaded configuration
+    under it), divided by :data:`FIRST_JUMP_FACTOR` over :data:`JUMP_FACTOR`, so that
+    :func:`_watch_jump` compares the first load step with it; 0 where the tangent is singular
+    (a slack cable, a mechanism held by its load)."""
+    free = system.free
+    _, K, _ = system.tangents(q0, np.zeros(system.n_dof), STATIC_TIME, 1.0)
     try:
         with np.errstate(all="ignore"):
-            du = spla.splu(K).solve(-(g1 - g0)[free])
+            du = spla.splu(K.tocsc()).solve(-loads[free])   # K on the free DOFs
     except RuntimeError:   # exactly singular
         return 0.0
     dq = np.zeros(system.n_dof)

@@ -11,7 +11,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from rodnet.kernels.tension import axial_force, ramp, secant_axial_force, step_strain_rate
+from rodnet.kernels.tension import (axial_force, ramp, ramp_curvature, secant_axial_force,
+                                    step_strain_rate)
 
 FloatArray = NDArray[np.float64]
 
@@ -62,7 +63,7 @@ def cable_tangents(x_a: FloatArray, x_b: FloatArray, v_a: FloatArray, v_b: Float
     n = axial_force(strain, rate, EA, etaA, kink_strain, tension_only)
     if tension_only:
         _, slope = ramp(strain, kink_strain)
-        curvature = np.where((strain > 0) & (strain < kink_strain), 1.0 / max(kink_strain, 1e-300), 0.0)
+        curvature = ramp_curvature(strain, kink_strain)
         active = n > 0.0
     else:
         slope, curvature, active = np.ones_like(strain), np.zeros_like(strain), np.ones(len(n), bool)

@@ -45,6 +45,11 @@ def ramp(strain: FloatArray, kink_strain: float) -> tuple[FloatArray, FloatArray
     return r, np.where(inside, e / kink_strain, 1.0)
 
 
+def ramp_curvature(strain: FloatArray, kink_strain: float) -> FloatArray:
+    """``r''(e)`` of :func:`ramp`: ``1 / delta`` inside the kink ``0 < e < delta``, else 0."""
+    return np.where((strain > 0.0) & (strain < kink_strain), 1.0 / max(kink_strain, 1e-300), 0.0)
+
+
 def axial_force(strain: FloatArray, strain_rate: FloatArray, EA: FloatArray, etaA: FloatArray,
                 kink_strain: float, tension_only: bool) -> FloatArray:
     """Axial force N [N] of each segment, (S3) and (S5).
@@ -140,7 +145,7 @@ def secant_axial_force(start: FloatArray, end: FloatArray, EA: FloatArray, etaA:
     r_mid, slope_mid = ramp(0.5 * (start + end), kink_strain)
     elastic = np.where(small, EA * r_mid, stored / safe)
     d_elastic = np.where(small, 0.5 * EA * slope_mid, (EA * r_end - elastic) / safe)
-    curvature = np.where((end > 0.0) & (end < kink_strain), 1.0 / max(kink_strain, 1e-300), 0.0)
+    curvature = ramp_curvature(end, kink_strain)
     taut_from = np.maximum(start, 0.0)
     viscous = etaA * slope_end * (end - taut_from) * inv_step
     d_viscous = etaA * inv_step * (curvature * (end - taut_from) + slope_end)

@@ -264,9 +264,12 @@ class CosseratModel:
         step = None if rate is None else (rate.reference, rate.inv_h)
         stored = step_potential(self.rest_length, self.reference_strain, self.stiffness, self.tau,
                                 x, quat, self.tension_only, self.kink_strain, step)
+        return float(stored.sum()) + self._force_potential(q, t, load_factor)
+
+    def _force_potential(self, q: Configuration, t: float, load_factor: float) -> float:
+        """``-sum f . x`` of gravity and the dead forces [J] (their moments left out)."""
         f, _ = self._external(q, t, load_factor)
-        n3 = 3 * self.n_nodes
-        return float(stored.sum()) - float(np.einsum("i,i", f[:n3], q.x.ravel()))
+        return -float(np.dot(f[:3 * self.n_nodes], q.x.ravel()))
 
     def retract(self, q: Configuration, dq: FloatArray) -> Configuration:
         n3 = 3 * self.n_nodes
@@ -379,10 +382,7 @@ class CosseratModel:
         elastic = strain_energy(self.rest_length, self.reference_strain, self.stiffness, x, quat,
                                 self.tension_only, self.kink_strain)
         kinetic = 0.5 * float(np.sum(self.dof_mass * v * v))
-        if len(self.load_nodes) and np.any(self.load_moment):
-            potential = float("nan")
-        else:
-            n3 = 3 * self.n_nodes
-            potential = -float(np.dot(self._external(q, t, 1.0)[0][:n3], q.x.ravel()))
+        moments = len(self.load_nodes) and np.any(self.load_moment)
+        potential = float("nan") if moments else self._force_potential(q, t, 1.0)
         return {"kinetic": kinetic, "elastic": float(elastic.sum()), "potential": potential}
 
