@@ -1011,7 +1011,8 @@ def rod_forces(x, quat, v, W, rods, force, monitor, blocks):  # pragma: no cover
     beta_angle, gamma_angle = rods.beta_angle, rods.gamma_angle  # no named tuple in a parallel loop
     n = rest_length.shape[0]
     if blocks == 1:  # one call: a loop of one block around it made a serial step 1.25 times as long
-        rod_forces_range(0, n, x, quat, v, W, pos, rot, oq, oR, series, stiffness, tau,
+        # ``first`` an int64 as in the loop below, not the literal 0: one compiled signature
+        rod_forces_range(n - n, n, x, quat, v, W, pos, rot, oq, oR, series, stiffness, tau,
                          rest_length, reference_strain, tension_only, kink, beta_angle,
                          gamma_angle, force, monitor)
         return _largest(monitor)

@@ -311,8 +311,9 @@ def _update(x, quat, v, W, f_node, m_node, nodes, rotations, h,
     n, r = x.shape[0], W.shape[0]
     inv_mass, inertia, inv_inertia = nodes.inv_mass, rotations.inertia, rotations.inv_inertia
     if blocks == 1:  # one call (as rod_forces)
-        bad, far = update_range(0, n, 0, r, x, quat, v, W, f_node, m_node, inv_mass, inertia,
-                                inv_inertia, h)
+        # the first nodes int64 as in the loop below, not the literal 0 (rod_forces)
+        bad, far = update_range(n - n, n, r - r, r, x, quat, v, W, f_node, m_node, inv_mass,
+                                inertia, inv_inertia, h)
     else:
         bad, far = 0, 0
         for b in numba.prange(blocks):  # no named tuple in a parallel loop
