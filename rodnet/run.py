@@ -39,7 +39,7 @@ from rodnet.integrate.implicit import NEWTON_TARGET, SCHEMES, integrate_implicit
 from rodnet.integrate.newton import NewtonOptions
 from rodnet.integrate.rk45 import integrate_rk45
 from rodnet.integrate.static import STATIC_TIME, solve_static
-from rodnet.io.recorder import FrameCheck, Recorder, energy_guard
+from rodnet.io.recorder import FrameCheck, Recorder, energy_guard, mechanical_energy
 from rodnet.io.restart import restarted, saved_frame
 from rodnet.io.results import output_directory, scene_as_dict, write_npz, write_summary
 from rodnet.io.vtk import VtkSeries
@@ -243,25 +243,19 @@ def _check_supported(system: ThreadSystem, structure: Structure, scene: Scene) -
 
 
 def _energy_checks(p: Prepared) -> list[FrameCheck]:
-    """The energy guard of a dynamic run whose energy nothing can raise: no loads (point or
-    line) and no gravity; or, with an implicit integrator, gravity constant in time (its
-    potential then counts) and no free bodies (whose own weight the frames do not account for).
-    Symplectic Euler's energy swings by about ``omega h / 2`` of itself on a resolved mode (a
-    spring at a third of its period per step: 0.86 to 1.19 of the start, bounded), so the explicit
-    integrator is allowed to double its energy before it is deemed unstable, and is not
-    guarded under gravity, where the swing is measured against the motion's small energy."""
+    """The energy guard (:func:`~rodnet.io.recorder.energy_guard`) of a dynamic run, whatever
+    its integrator, whose energy nothing can raise: no loads (point or line) and a gravity, if any,
+    constant in time (its potential then counts, and the bodies' weight with it). Symplectic
+    Euler's energy swings by about ``omega h / 2`` of itself on a resolved mode (a spring at a
+    third of its period per step: 0.86 to 1.19 of the start, bounded), so the explicit
+    integrator is allowed to double its energy, or to gain as much as it has in motion under
+    gravity, before it is deemed unstable; the others a tenth of that."""
     scene = p.scene
     sim = scene.simulation
-    if sim.type != "dynamic" or scene.loads or scene.line_loads:
+    if sim.type != "dynamic" or scene.loads or scene.line_loads or sim.gravity_scheduled:
         return []
-    if not any(sim.gravity):
-        return [energy_guard(growth=1.0 if scene.integrator == "explicit" else 0.1)]
-    if scene.integrator not in SCHEMES or sim.gravity_scheduled or \
-            any(not body.fixed for body in scene.bodies):
-        return []
-    n = p.structure.n_nodes
-    mass = np.asarray(p.system.model.dof_mass[:3 * n], dtype=float).reshape(n, 3)
-    return [energy_guard(weight=mass * np.asarray(sim.gravity, dtype=float))]
+    return [energy_guard(growth=1.0 if scene.integrator == "explicit" else 0.1,
+                         potential=bool(any(sim.gravity)))]
 
 
 # --- the integrators, by name ------------------------------------------------------------
@@ -645,30 +639,50 @@ def _viscous_step(p: Prepared) -> list[str]:
 
 
 ENERGY_RISE = 0.05
-"""An explicit run whose kinetic and elastic energy, which nothing raises, rose by more than
-this fraction warns (undamped threads snapping at the default step: +45 % on a 5 x 5 net)."""
+"""An explicit run whose energy, which nothing raises, rose by more than this fraction warns
+(of its start, or under gravity of the largest energy in motion; undamped threads snapping at
+the default step: +45 % on a 5 x 5 net)."""
 
 
 def _energy_rise(p: Prepared, arrays: dict[str, NDArray[Any]]) -> list[str]:
-    """The warning of an explicit run whose energy rose by more than :data:`ENERGY_RISE`
-    although nothing does work on it (no loads, gravity or bodies): the energy guard allows
-    symplectic Euler's swing up to 100 %, which undamped snaps reach only at the stability
-    limit, while at the default step they already gain tens of percent."""
+    """The warning of an explicit run whose energy (:func:`rodnet.io.recorder.mechanical_energy`)
+    rose by more than :data:`ENERGY_RISE` although nothing but a constant gravity does work on
+    it (no loads): the energy guard allows symplectic Euler's swing up to 100 %, which undamped
+    snaps reach only at the stability limit, while at the default step they already gain tens of
+    percent (and a light rope pressed on a drum by its weight grows without bound)."""
     scene, sim = p.scene, p.scene.simulation
     if scene.integrator != "explicit" or sim.type != "dynamic" or scene.loads or \
-            scene.line_loads or any(sim.gravity) or scene.bodies or \
-            "kinetic_energy" not in arrays or len(arrays["time"]) < 2:
+            scene.line_loads or sim.gravity_scheduled or "kinetic_energy" not in arrays or \
+            len(arrays["time"]) < 2:
         return []
-    energy = arrays["kinetic_energy"] + arrays["elastic_energy"]
-    rise = float(energy.max() / energy[0] - 1.0) if energy[0] > 0.0 else 0.0
+    gravity = bool(any(sim.gravity))
+    energy, motion = mechanical_energy(arrays, gravity)
+    if gravity:
+        rise = float(np.max((energy - energy[0]) / np.maximum(np.maximum.accumulate(motion),
+                                                              np.finfo(float).tiny)))
+    else:
+        rise = float(energy.max() / energy[0] - 1.0) if energy[0] > 0.0 else 0.0
     if not rise > ENERGY_RISE:
         return []
-    return [f"the kinetic and elastic energy rose by {100.0 * rise:.3g} % although nothing does "
-            "work on the structure: the explicit step (simulation.explicit_safety = "
-            f"{sim.explicit_safety:g}) is too long for the threads' snaps, which symplectic Euler "
-            "takes with the force at the start of the step, and without damping nothing takes "
-            "the gain away (undamped nets: within 0.4 % at explicit_safety = 0.25); use a "
-            "smaller explicit_safety, materials.viscosity > 0, or the midpoint rule"]
+    measure = ("the energy, gravity's potential included, rose by "
+               f"{100.0 * rise:.3g} % of the largest energy in motion") if gravity else \
+        f"the kinetic and elastic energy rose by {100.0 * rise:.3g} %"
+    return [f"{measure} although nothing does work on the structure"
+            + (" but gravity" if gravity else "") + ": the explicit step "
+            f"(simulation.explicit_safety = {sim.explicit_safety:g}) is too long for the threads' "
+            "snaps or contacts, which symplectic Euler takes with the force at the start of the "
+            "step, and without damping nothing takes the gain away (undamped nets: within 0.4 % "
+            "at explicit_safety = 0.25); use a smaller explicit_safety, materials.viscosity > 0"
+            + (", contact.damping > 0" if scene.bodies else "") + _energy_stable_choice(p)]
+
+
+def _energy_stable_choice(p: Prepared) -> str:
+    """The advice's last item: the implicit integrator that keeps the energy, where the model has
+    one (Kirchhoff threads have none): the midpoint rule, or BDF2 with bodies (the midpoint
+    rule is not energy-stable in contact)."""
+    if not any(i in SCHEMES for i in MODELS[p.built.variant].supports.integrators):
+        return ""
+    return ", or simulation.integrator = \"bdf2\"" if p.scene.bodies else ", or the midpoint rule"
 
 
 def _warnings(p: Prepared, stats: StepStats, monitors: dict[str, float],

@@ -108,33 +108,40 @@ class Recorder:
         return out
 
 
-def energy_guard(growth: float = 0.1, weight: NDArray[np.float64] | None = None) -> FrameCheck:
-    """A check that stops a run whose energy, which nothing raises, rises.
+def mechanical_energy(frames: dict[str, Any], potential: bool) -> tuple[Any, Any]:
+    """The energy [J] of a frame, or of the frames' stacked arrays (F,), that the energy checks
+    watch, and its part in motion: ``motion`` = kinetic + elastic + the contact's penalty springs
+    (with bodies), ``energy`` = ``motion`` plus, with ``potential``, the frame's
+    ``potential_energy`` (gravity on the nodes and on the bodies)."""
+    motion = frames["kinetic_energy"] + frames["elastic_energy"] + frames.get("contact_energy", 0.0)
+    return (motion + frames["potential_energy"] if potential else motion), motion
 
-    Without ``weight``, for scenes with nothing that does work on them (no gravity, no loads):
-    the kinetic plus elastic energy may not rise above the first frame's by more than
-    ``growth`` of it. With ``weight`` (N, 3), the nodes' constant gravity forces ``m_i g`` [N]
-    in a scene without other loads: their potential ``-sum(weight . x)`` is added, and the
-    energy may not rise above the first frame's by more than ``growth`` of the largest kinetic
-    plus elastic energy of the frames so far (the potential has no natural zero). An
-    integrator that is not energy-stable on a stiff nonlinear problem (the midpoint rule on a
-    stiff pendulum at a large fixed step) would otherwise report a diverging run as done."""
+
+def energy_guard(growth: float = 0.1, potential: bool = False) -> FrameCheck:
+    """A check that stops a run whose energy (:func:`mechanical_energy`), which nothing raises,
+    rises.
+
+    Without ``potential``, for scenes with nothing that does work on them (no gravity, no
+    loads): the energy may not rise above the first frame's by more than ``growth`` of it.
+    With ``potential``, for scenes whose only load is a constant gravity: the energy counts
+    gravity's potential and may not rise above the first frame's by more than ``growth`` of
+    the largest energy in motion of the frames so far (the potential has no natural zero). An
+    integrator that is not stable on a stiff nonlinear problem (the midpoint rule on a stiff
+    pendulum at a large fixed step, symplectic Euler on a light rope pressed on a drum) would
+    otherwise report a diverging run as done."""
     start: list[float] = []
     largest = [0.0]
 
     def check(t: float, frame: dict[str, Any]) -> None:
-        motion = frame["kinetic_energy"] + frame["elastic_energy"]
-        now = motion
-        if weight is not None:
-            now -= float(np.einsum("ij,ij", weight, frame["positions"]))
+        now, motion = mechanical_energy(frame, potential)
         if not np.isfinite(now):
             raise SimulationFailed(f"the state became non-finite (NaN or inf) by t = {t:.6g} s")
         if not start:
             start.append(now)
         largest[0] = max(largest[0], motion)
-        allowed = growth * (start[0] if weight is None else largest[0])
+        allowed = growth * (largest[0] if potential else start[0])
         if now - start[0] > max(allowed, 1e-9 + 1e-9 * abs(start[0])):
-            cause = "gravity is the only force that does work on it" if weight is not None \
+            cause = "gravity is the only force that does work on it" if potential \
                 else "nothing does work on the structure"
             raise SimulationFailed(
                 f"the energy grew from {start[0]:.6g} J to {now:.6g} J by t = {t:.6g} s although "
