@@ -162,17 +162,23 @@ demo_scene_text = reference_scene_text
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit status (0 ok, 1 failed run, 2 bad input, 130 interrupted by
     Ctrl-C, 143 by SIGTERM). Where the reader of the output goes away (``rodnet run ... | head``)
-    the rest of the output is dropped, without a traceback, and the status is 1 (the results
-    are written before the lines that report them)."""
+    the rest of the output is dropped, without a traceback: a run's status stays its own (its
+    results are written before the lines that report them), any other command's is 1."""
     try:
         return _command(argv)
     except BrokenPipeError:
-        sys.stdout = open(os.devnull, "w")   # noqa: SIM115  (Python flushes stdout at exit)
+        _drop_output()
         return EXIT_FAILED
     except KeyboardInterrupt:   # before a run's own handling starts (loading, compiling)
         print("rodnet: interrupted (Ctrl-C) before the run started; nothing was written",
               file=sys.stderr)
         return 128 + int(signal.SIGINT)
+
+
+def _drop_output() -> None:
+    """Send the rest of the output nowhere: its reader went away (Python flushes both at exit)."""
+    sys.stdout = open(os.devnull, "w")   # noqa: SIM115
+    sys.stderr = open(os.devnull, "w")   # noqa: SIM115
 
 
 def _command(argv: list[str] | None) -> int:
@@ -265,9 +271,12 @@ def _run_one(scene, out: Path | None, args: argparse.Namespace, movie: bool):  #
     if args.threads is not None and result.summary.get("threads", args.threads) < args.threads:
         warnings.append(f"--threads {args.threads}: ran on {result.summary['threads']}, the "
                         "threads numba may use here (NUMBA_NUM_THREADS, else the cores)")
-    for w in warnings:
-        print(f"rodnet: warning: {w}", file=sys.stderr)
-    _report(result)
+    try:
+        for w in warnings:
+            print(f"rodnet: warning: {w}", file=sys.stderr)
+        _report(result)
+    except BrokenPipeError:   # the results are written: the run's status stands
+        _drop_output()
     if result.status == "interrupted":
         return 128 + int(getattr(signal, str(result.summary.get("signal", "SIGINT")))), result
     return (0 if result.status == "ok" else EXIT_FAILED), result

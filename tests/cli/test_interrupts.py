@@ -5,6 +5,7 @@ not a terminal logs its progress there."""
 from __future__ import annotations
 
 import json
+import os
 import signal
 import subprocess
 import sys
@@ -76,3 +77,17 @@ def test_a_failed_static_run_is_told_by_its_load_factor(capsys: pytest.CaptureFi
         _report(SimpleNamespace(status="failed", message="no static equilibrium found",
                                 summary=summary, directory="out"))
         assert said in capsys.readouterr().err
+
+
+def test_a_reader_that_goes_away_leaves_the_runs_status(tmp_path: Path) -> None:
+    """``rodnet run ... 2>&1 | head -1`` (outside check): the report's lines can no longer be
+    written; the run completed and wrote its results, so the status is 0, not 1, without a
+    traceback."""
+    (tmp_path / "net.toml").write_text(small_net_toml(duration=0.05))
+    read, write = os.pipe()
+    os.close(read)     # the reader is gone before the first line
+    done = subprocess.run([sys.executable, "-m", "rodnet", "run", str(tmp_path / "net.toml"),
+                           "-o", str(tmp_path / "out")], stdout=write, stderr=write)
+    os.close(write)
+    assert done.returncode == 0
+    assert json.loads((tmp_path / "out" / "summary.json").read_text())["status"] == "ok"
