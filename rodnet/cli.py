@@ -37,6 +37,8 @@ def _parser() -> argparse.ArgumentParser:
                           "threads and the lumped reference side by side")
     demo.add_argument("--quick", action="store_true",
                       help="the lumped reference alone (a few seconds)")
+    demo.add_argument("--no-movie", action="store_true",
+                      help="do not draw deployment.mp4 (rodnet render draws it later)")
     val = sub.add_parser("validate", help="run the validation cases and write a report")
     val.add_argument("--cases", type=Path, default=SOURCE / "validation" / "cases",
                      help="folder of cases (default: the source tree's validation/cases)")
@@ -227,7 +229,8 @@ def _command(argv: list[str] | None) -> int:
         out = args.output if args.output is not None or not folder else \
             Path(scene.output.directory)      # None: run() names the scene key in its errors
         status, result = _run_one(scene, out / folder if folder else out, args,
-                                  movie=args.command == "demo" and not folder)
+                                  movie=args.command == "demo" and not folder
+                                  and not args.no_movie)
         if status != 0:
             return status
         results.append(result)

@@ -16,18 +16,29 @@ VTK output (else it is left out and the picture says so).
 
 from __future__ import annotations
 
+import ctypes.util
 import json
 import os
 import subprocess
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
+from collections.abc import MutableMapping
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 FloatArray = NDArray[np.float64]
+
+
+def headless_rendering(env: MutableMapping[str, str]) -> None:
+    """Without an X display (``DISPLAY`` unset or empty), have VTK draw with EGL straight away
+    where libEGL is installed (the README's set-up installs it): VTK tries an X server first and
+    prints a warning about the missing one before it falls back to EGL anyway."""
+    if not env.get("DISPLAY") and "VTK_DEFAULT_OPENGL_WINDOW" not in env and \
+            ctypes.util.find_library("EGL"):
+        env["VTK_DEFAULT_OPENGL_WINDOW"] = "vtkEGLRenderWindow"
 
 
 def render_in_subprocess(directory: Path, picture: bool, plot: bool, movie: bool = False,
@@ -37,6 +48,7 @@ def render_in_subprocess(directory: Path, picture: bool, plot: bool, movie: bool
     one for the figures, one for the movie, saying why each is missing."""
     env = dict(os.environ)
     env.setdefault("PYVISTA_OFF_SCREEN", "true")
+    headless_rendering(env)
     tasks = [name for name, asked in (("picture", picture), ("plot", plot), ("movie", movie))
              if asked]
     args = [sys.executable, "-m", "rodnet.viz.worker", str(directory)] + [f"--{t}" for t in tasks]

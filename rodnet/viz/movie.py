@@ -14,6 +14,7 @@ Pillow.
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 from typing import Any
 
@@ -22,7 +23,8 @@ from numpy.typing import NDArray
 
 from rodnet.errors import SceneError
 from rodnet.viz.figures import (TENSION, add_scale_and_view, add_threads, bodies_at_frame,
-                                body_surface, corner_nodes, frame_label, thread_mesh)
+                                body_surface, corner_nodes, frame_label, thread_mesh,
+                                headless_rendering)
 
 FloatArray = NDArray[np.float64]
 
@@ -259,6 +261,7 @@ class _MovieScene:
 
     def __init__(self, directory: Path, data: Any, summary: dict[str, Any],
                  size: tuple[int, int]) -> None:
+        headless_rendering(os.environ)   # before VTK is loaded
         import pyvista as pv
         from vtkmodules.vtkCommonCore import vtkUnsignedCharArray
 

@@ -38,10 +38,16 @@ def test_demo_runs_both_models_and_compares_them(tmp_path: Path,
 
 
 def test_quick_demo_is_the_lumped_reference_alone(tmp_path: Path) -> None:
+    """... and draws the movie, which the output keys do not turn off, unless --no-movie."""
     out = tmp_path / "out"
-    assert main(["demo", "--quick", "-o", str(out), *SHORT]) == 0
+    assert main(["demo", "--quick", "--no-movie", "-o", str(out), *SHORT]) == 0
     assert _summary(out)["scene"]["model"]["type"] == "lumped"
     assert not (out / "lumped").exists() and not (out / "comparison.png").exists()
+    assert not (out / "deployment.mp4").exists()
+    pytest.importorskip("pyvista")
+    pytest.importorskip("imageio_ffmpeg")
+    assert main(["demo", "--quick", "-o", str(tmp_path / "movie"), *SHORT]) == 0
+    assert (tmp_path / "movie" / "deployment.mp4").stat().st_size > 1000
 
 
 def test_a_bad_override_runs_neither_model(tmp_path: Path,
