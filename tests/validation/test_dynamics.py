@@ -265,6 +265,98 @@ def test_time_order_with_finer_steps(tmp_path: Path) -> None:
 FIXED_GA = 'integrator = "generalized-alpha"\ndt = {dt}\nadaptive = {adaptive}'
 
 
+CANTILEVER = """
+[simulation]
+duration = 2.0
+integrator = "{integrator}"
+adaptive = false
+dt = 0.001
+[model]
+type = "cosserat"
+axial = "linear"
+[[materials]]
+name = "steel"
+density = 7850.0
+youngs_modulus = 2.0e11
+poisson_ratio = 0.3
+diameter = 0.01
+[[rods]]
+name = "beam"
+material = "steel"
+points = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]
+elements = 20
+[[supports]]
+node = "beam:start"
+fix = "clamp"
+[initial]
+velocities = {velocities}
+[output]
+frame_interval = 0.001
+vtk = false
+"""
+
+
+def _sdof_energy_ratio(scheme: str, omega: float, h: float, steps: int, window: int) -> float:
+    """The mean energy of the last ``window`` steps over that of the first, of the textbook
+    scheme on ``x'' + omega^2 x = 0`` from ``x = 0, v = 1`` (BDF2 started by backward Euler;
+    generalized-alpha of Chung and Hulbert 1993, rho_inf 0.7)."""
+    x, v, energy = [0.0], [1.0], []
+    if scheme == "bdf2":
+        for n in range(steps):    # (3/2) y1 - 2 y0 + (1/2) y_1 = h f(y1); the first step Euler
+            a, b = (1.0, 1.0) if n == 0 else (1.5, 1.0)
+            rx = x[-1] * (2.0 if n else 1.0) - (0.5 * x[-2] if n else 0.0)
+            rv = v[-1] * (2.0 if n else 1.0) - (0.5 * v[-2] if n else 0.0)
+            # a x1 - h v1 = rx, a v1 + h omega^2 x1 = rv
+            det = a * a + h * h * omega * omega
+            x.append((a * rx + h * rv) / det)
+            v.append((a * rv - h * omega * omega * rx) / det)
+    else:
+        rho = 0.7
+        am, af = (2 * rho - 1) / (rho + 1), rho / (rho + 1)
+        gamma, beta = 0.5 - am + af, 0.25 * (1 - am + af) ** 2
+        acc = [0.0]
+        for _ in range(steps):
+            x0, v0, a0 = x[-1], v[-1], acc[-1]
+            # (1 - am) a1 + am a0 + omega^2 ((1 - af) x1 + af x0) = 0, Newmark updates
+            xp = x0 + h * v0 + h * h * (0.5 - beta) * a0
+            a1 = -(am * a0 + omega ** 2 * ((1 - af) * xp + af * x0)) / \
+                ((1 - am) + omega ** 2 * (1 - af) * beta * h * h)
+            x.append(xp + beta * h * h * a1)
+            v.append(v0 + h * ((1 - gamma) * a0 + gamma * a1))
+            acc.append(a1)
+    energy = 0.5 * (np.array(v) ** 2 + omega ** 2 * np.array(x) ** 2)
+    return float(energy[-window:].mean() / energy[1:window + 1].mean())
+
+
+@pytest.mark.parametrize("integrator", ["bdf2", "generalized-alpha"])
+def test_a_cantilevers_first_mode_is_damped_as_the_scheme_says(tmp_path: Path,
+                                                               integrator: str) -> None:
+    """A steel cantilever (1 m x 10 mm, 20 elements) swinging 0.1 mm in its first mode at 142
+    steps per period: its energy decays over 2 s as the textbook scheme's on a single mode of
+    its frequency (BDF2 by 0.37 %, generalized-alpha by 4e-5), and no step is taken again by
+    backward Euler. An outside check found 21 (BDF2) and 7 of 1,000 steps taken again and the
+    damping 35 and 300 times the scheme's: predictors accepted within Newton's tolerance (a
+    tenth of these forces) and an energy guard measured against the kinetic energy alone."""
+    L, d, E, rho = 1.0, 0.01, 2.0e11, 7850.0
+    EI, rhoA = E * np.pi * d ** 4 / 64, rho * np.pi * d ** 2 / 4
+    omega = 1.875104 ** 2 / L ** 2 * np.sqrt(EI / rhoA)     # Euler-Bernoulli mode 1
+    s = np.linspace(0.0, L, 21)[1:]
+    k = 1.875104 / L
+    shape = (np.cosh(k * s) - np.cos(k * s)
+             - (np.cosh(k * L) + np.cos(k * L)) / (np.sinh(k * L) + np.sin(k * L))
+             * (np.sinh(k * s) - np.sin(k * s))) / 2.0
+    velocities = [[f"beam:{i + 1}", 0.0, 0.0, float(5e-5 * omega * w)] for i, w in enumerate(shape)]
+    r = _run(CANTILEVER.format(integrator=integrator, velocities=velocities), tmp_path)
+    a = r.arrays
+    energy = a["kinetic_energy"] + a["elastic_energy"]
+    window = 200
+    measured = energy[-window:].mean() / energy[1:window + 1].mean()
+    expected = _sdof_energy_ratio(integrator, omega, 1e-3, len(energy) - 1, window)
+    print(integrator, "energy ratio", measured, "scheme", expected)
+    assert r.summary["retaken_steps"] == 0
+    assert abs(measured - expected) < 0.05 * (1.0 - expected) + 1e-5
+
+
 def test_error_controlled_steps_meet_the_tolerance(tmp_path: Path) -> None:
     """The benchmark thread (1.5 m nylon, clamped, released under gravity, 1 s) with
     generalized-alpha and the local error control, against a fixed step of 2e-4 s: the tip error
