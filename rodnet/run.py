@@ -685,6 +685,15 @@ def _energy_stable_choice(p: Prepared) -> str:
     return ", or simulation.integrator = \"bdf2\"" if p.scene.bodies else ", or the midpoint rule"
 
 
+def _raised_inertia(p: Prepared) -> float | None:
+    """The explicit integrator's largest raise of the rotary inertia (C49), None where it raised
+    nothing beyond round-off (1 + 3e-14 where the step needs no raise) or does not apply."""
+    scale = p.built.rotary_inertia_scale
+    if p.scene.integrator != "explicit" or scale is None or not scale > 1.0 + 1e-9:
+        return None
+    return scale
+
+
 def _warnings(p: Prepared, stats: StepStats, monitors: dict[str, float],
               arrays: dict[str, NDArray[Any]]) -> list[str]:
     """What the user should know about a completed or failed run: a clamp on threads without
@@ -712,11 +721,11 @@ def _warnings(p: Prepared, stats: StepStats, monitors: dict[str, float],
                    "carrying no bending moment); use model.type = 'cosserat' with bending for a "
                    "clamped rod")
     out += _shared_supports(p) + _loads_on_supports(p) + _without_effect(p)
-    scale = p.built.rotary_inertia_scale
+    scale = _raised_inertia(p)
     turned = [f"loads[{i}].moment" for i, load in enumerate(p.scene.loads) if any(load.moment)] + \
         [f"rods[{i}].angular_velocity" for i, rod in enumerate(p.scene.rods)
          if any(rod.angular_velocity)]
-    if p.scene.integrator == "explicit" and scale is not None and scale > 1.0 and turned:
+    if scale is not None and turned:
         out.append(f"{turned[0]} turns sections whose rotary inertia the explicit integrator "
                    f"raised up to {scale:.3g} times (simulation.rotary_inertia_scaling): their own "
                    "turning is slowed, so torsion modes come out slow (a steel shaft's first "
@@ -767,7 +776,7 @@ def _warnings(p: Prepared, stats: StepStats, monitors: dict[str, float],
     elif monitors.get("inside_out_elements_last", 0.0) > 0.0 or \
             monitors.get("inside_out_elements_frames", 0.0) > 0.1 * max(frames, 1):
         # a passing inversion (the reference deployment: at 5 of 301 frames, 4.7 N) is not told
-        scaled = scale is not None and p.scene.integrator == "explicit"
+        scaled = scale is not None
         out.append(f"up to {inside_out} rod element(s) were inside out at saved frames (the "
                    "chord against the section's axis, FORMULATION.md C51): their sections did not "
                    "turn with their chords, and the regularising spring of 0.01 EA pulled on "

@@ -379,3 +379,20 @@ def test_a_moment_on_sections_of_raised_inertia_is_told(tmp_path: Path) -> None:
     static = 10.0 / GJ
     assert twist["false"][quarter] > 0.8 * static          # at the quarter period, as it should
     assert twist["true"][quarter] < 0.5 * static           # far behind with the raised inertia
+
+
+def test_a_spin_on_sections_whose_inertia_was_not_raised_is_not_told(tmp_path: Path) -> None:
+    """A free stiff rod spinning about its axis (an outside check's torque-free top) needs no
+    raise at the explicit step: the factor is 1 to round-off (1 + 3e-14 there), and the
+    warning about slowed sections, which claimed a raise 'up to 1 times', is not given."""
+    text = SHAFT.format(scaling="true").replace("duration = 0.002", "duration = 0.05")
+    text = text.split("[[supports]]")[0] + "[output]\nframe_interval = 0.01\nvtk = false\n"
+    text = text.replace('diameter = 0.01\n', 'diameter = 0.01\naxial_stiffness = 1.0e7\n'
+                        'shear_stiffness = 1.0e7\nbending_stiffness = 1.0e4\n'
+                        'torsional_stiffness = 1.0e4\nmass_per_length = 1.0\n'
+                        'rotary_inertia_per_length = 0.05\n')
+    text = text.replace('elements = 20\n', 'elements = 10\nangular_velocity = [20.0, 0.0, 2.0]\n')
+    r = run(scene_from_toml(text), tmp_path, progress=False)
+    assert r.status == "ok", r.message
+    assert r.summary["integrator"]["rotary_inertia_scale"] == pytest.approx(1.0, abs=1e-9)
+    assert not [w for w in r.summary["warnings"] if "angular_velocity" in w]
