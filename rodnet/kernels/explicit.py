@@ -257,15 +257,17 @@ def _turn_far(quat, W, h):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, error_model="numpy")
-def update_range(nodes_from, nodes_to, rot_from, rot_to, x, quat, v, W, f_node, m_node, inv_mass,
-                 inertia, inv_inertia, h):  # pragma: no cover - compiled
-    """The symplectic Euler update (S9), (C46), (C47) in place of the position nodes
-    ``nodes_from`` to ``nodes_to - 1`` and the rotation nodes ``rot_from`` to ``rot_to - 1``;
-    returns how many nodes became non-finite and how many rotation nodes turned too far for
-    the series of ``exp`` (left for :func:`_turn_far`). ``inv_mass`` is :class:`Nodes`' field,
-    ``inertia`` and ``inv_inertia`` :class:`Rotations`'."""
+def update_range(x, quat, v, W, f_node, m_node, inv_mass, inertia, inv_inertia,
+                 h):  # pragma: no cover - compiled
+    """The symplectic Euler update (S9), (C46), (C47) in place of the position nodes (``x``,
+    ``v``, ``f_node``, ``inv_mass``) and rotation nodes (``quat``, ``W``, ``m_node``,
+    ``inertia``, ``inv_inertia``) given (a block: these arrays' rows, as views, so that the loops
+    start at 0 and the compiler drops the checks for negative indices and vectorises the
+    rotations); returns how many nodes became non-finite and how many rotation nodes turned too
+    far for the series of ``exp`` (left for :func:`_turn_far`). ``inv_mass`` is :class:`Nodes`'
+    field, ``inertia`` and ``inv_inertia`` :class:`Rotations`'."""
     bad = 0
-    for i in range(nodes_from, nodes_to):
+    for i in range(x.shape[0]):
         for k in range(3):
             v[i, k] += h * f_node[i, k] * inv_mass[i, k]
             x[i, k] += h * v[i, k]
@@ -277,7 +279,7 @@ def update_range(nodes_from, nodes_to, rot_from, rot_to, x, quat, v, W, f_node, 
     Wf, Q, M = W.reshape(-1), quat.reshape(-1), m_node.reshape(-1)
     J, Ji = inertia.reshape(-1), inv_inertia.reshape(-1)
     far = 0
-    for r in range(rot_from, rot_to):
+    for r in range(W.shape[0]):
         a, b = 3 * r, 4 * r
         w0, w1, w2 = Wf[a], Wf[a + 1], Wf[a + 2]
         j0, j1, j2 = J[a] * w0, J[a + 1] * w1, J[a + 2] * w2
@@ -311,15 +313,15 @@ def _update(x, quat, v, W, f_node, m_node, nodes, rotations, h,
     n, r = x.shape[0], W.shape[0]
     inv_mass, inertia, inv_inertia = nodes.inv_mass, rotations.inertia, rotations.inv_inertia
     if blocks == 1:  # one call (as rod_forces)
-        # the first nodes int64 as in the loop below, not the literal 0 (rod_forces)
-        bad, far = update_range(n - n, n, r - r, r, x, quat, v, W, f_node, m_node, inv_mass,
-                                inertia, inv_inertia, h)
+        bad, far = update_range(x, quat, v, W, f_node, m_node, inv_mass, inertia, inv_inertia, h)
     else:
         bad, far = 0, 0
         for b in numba.prange(blocks):  # no named tuple in a parallel loop
-            bad_b, far_b = update_range(b * n // blocks, (b + 1) * n // blocks, b * r // blocks,
-                                        (b + 1) * r // blocks, x, quat, v, W, f_node, m_node,
-                                        inv_mass, inertia, inv_inertia, h)
+            i, j = b * n // blocks, (b + 1) * n // blocks
+            k, m = b * r // blocks, (b + 1) * r // blocks
+            bad_b, far_b = update_range(x[i:j], quat[k:m], v[i:j], W[k:m], f_node[i:j],
+                                        m_node[k:m], inv_mass[i:j], inertia[k:m],
+                                        inv_inertia[k:m], h)
             bad += bad_b
             far += far_b
     if far:
