@@ -922,3 +922,41 @@ def test_keys_set_to_no_effect_are_told(tmp_path: Path) -> None:
                                                      "elements = 20\nrotation_center = [0.0, 0.0, 0.0]")
     r = run(scene_from_toml(rod), tmp_path / "rod", progress=False)
     assert any("rods[0].rotation_center has no effect" in w for w in r.summary["warnings"])
+
+
+def test_a_rod_whose_ends_meet_is_told_it_is_open(tmp_path: Path) -> None:
+    """A ring given as a polyline back to its first point (outside check): its end nodes are
+    not joined, so it is a split ring; the run says so (a nearly closed C does not)."""
+    def ring(gap: float) -> str:
+        angles = np.linspace(0.0, 2.0 * np.pi - gap, 13)
+        points = [[float(np.cos(a)), float(np.sin(a)), 0.0] for a in angles]
+        return f"""
+[simulation]
+type = "static"
+[model]
+axial = "linear"
+[[materials]]
+name = "steel"
+density = 7850.0
+youngs_modulus = 2.0e11
+diameter = 0.01
+[[rods]]
+name = "ring"
+material = "steel"
+points = {points}
+elements = 12
+[[supports]]
+node = "ring:3"
+fix = "clamp"
+[[loads]]
+node = "ring:9"
+force = [0.0, 0.01, 0.0]
+[output]
+vtk = false
+"""
+    told = {}
+    for gap in (0.0, 0.1):
+        r = run(scene_from_toml(ring(gap)), tmp_path / str(gap), progress=False)
+        assert r.status == "ok", r.message
+        told[gap] = [w for w in r.summary["warnings"] if "rods[0].points ends where it starts" in w]
+    assert told[0.0] and not told[0.1]
