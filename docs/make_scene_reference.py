@@ -258,9 +258,10 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
     # [[supports]]
     "supports.node": ("", "Node selector, e.g. `\"beam:start\"`, `\"net:knot:12\"`."),
     "supports.fix": (
-        "", '"clamp": position and rotation fixed; "pin": position fixed, free to turn. In the '
-        "lumped model, in cable threads, and at nodes without a single rotation (pinned knots, "
-        "corner masses) both fix the position only."),
+        "", '"clamp": position and rotation fixed; "pin": position fixed, free to turn. Not set: '
+        '"clamp", unless `dofs` is given (`fix` beside `dofs` has no effect, and is warned of). '
+        "In the lumped model, in cable threads, and at nodes without a single rotation (pinned "
+        "knots, corner masses) both fix the position only."),
     "supports.dofs": (
         "-", "Optional list of the DOFs to fix instead of `fix`'s set: `x`, `y`, `z` (global "
         "translations) and `r1`, `r2`, `r3` (rotations about the node's material axes; `r1` is the "

@@ -329,7 +329,7 @@ class SupportSpec:
     """
 
     node: str
-    fix: Literal["clamp", "pin"] = "clamp"
+    fix: Literal["clamp", "pin"] | None = None
     dofs: tuple[str, ...] | None = None
 
     def __post_init__(self) -> None:
@@ -339,11 +339,17 @@ class SupportSpec:
                     f"must be a non-empty list of distinct names from {list(SUPPORT_DOFS)}")
 
     @property
+    def clamped(self) -> bool:
+        """Whether the support is a clamp: ``fix = "clamp"`` or, the default, no ``fix`` and no
+        ``dofs``."""
+        return self.dofs is None and self.fix != "pin"
+
+    @property
     def fixed(self) -> tuple[str, ...]:
         """The fixed DOF names."""
         if self.dofs is not None:
             return self.dofs
-        return SUPPORT_DOFS if self.fix == "clamp" else SUPPORT_DOFS[:3]
+        return SUPPORT_DOFS if self.clamped else SUPPORT_DOFS[:3]
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

@@ -574,10 +574,14 @@ def _closed_rods(p: Prepared) -> list[str]:
 
 
 def _without_effect(p: Prepared) -> list[str]:
-    """A warning for keys the scene sets to no effect: ``[contact]`` without bodies, a load
-    that starts at or after the run's end (dynamic runs), ``rotation_center`` without
-    ``angular_velocity``."""
+    """A warning for keys the scene sets to no effect: ``fix`` beside ``dofs``, ``[contact]``
+    without bodies, a load that starts at or after the run's end (dynamic runs),
+    ``rotation_center`` without ``angular_velocity``."""
     scene, out = p.scene, []
+    for i, support in enumerate(scene.supports):
+        if support.fix is not None and support.dofs is not None:
+            out.append(f"supports[{i}].fix = '{support.fix}' has no effect: dofs = "
+                       f"{list(support.dofs)} is the whole set of DOFs the support holds")
     if scene.contact is not None and not scene.bodies:
         out.append("[contact] has no effect: the scene has no [[bodies]] (threads do not "
                    "touch each other)")
@@ -728,7 +732,7 @@ def _warnings(p: Prepared, stats: StepStats, monitors: dict[str, float],
     out = _viscous_step(p) + _energy_rise(p, arrays)
     frames = len(arrays["time"])
     clamps = [i for i, support in enumerate(p.scene.supports)
-              if support.dofs is None and support.fix == "clamp"]
+              if support.clamped]
     if clamps and not len(p.model.rotation_dofs()):
         label = MODELS[p.built.variant].label
         named = f"supports[{clamps[0]}].fix = 'clamp' holds" if len(clamps) == 1 else \

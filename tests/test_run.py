@@ -960,3 +960,48 @@ vtk = false
         assert r.status == "ok", r.message
         told[gap] = [w for w in r.summary["warnings"] if "rods[0].points ends where it starts" in w]
     assert told[0.0] and not told[0.1]
+
+
+def test_fix_beside_dofs_is_told_to_have_no_effect(tmp_path: Path) -> None:
+    """``fix = "clamp"`` with ``dofs = ["y", "z"]`` is a roller (outside check: a propped
+    cantilever's deflection where fixed-fixed was meant): dofs is the whole set, and the run
+    says that fix did nothing; without fix the same support is not warned of, and a support
+    with neither key is a clamp."""
+    beam = """
+[simulation]
+type = "static"
+[model]
+axial = "linear"
+[[materials]]
+name = "steel"
+density = 7850.0
+youngs_modulus = 2.0e11
+diameter = 0.01
+[[rods]]
+name = "beam"
+material = "steel"
+points = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]
+elements = 32
+[[supports]]
+node = "beam:start"
+[[supports]]
+node = "beam:end"
+{end}
+[[loads]]
+node = "beam:16"
+force = [0.0, 0.0, -10.0]
+[output]
+vtk = false
+"""
+    sag = {}
+    for label, end in (("both", 'fix = "clamp"\ndofs = ["y", "z"]'), ("dofs", 'dofs = ["y", "z"]'),
+                       ("clamp", "")):
+        r = run(scene_from_toml(beam.format(end=end)), tmp_path / label, progress=False)
+        assert r.status == "ok", r.message
+        told = [w for w in r.summary["warnings"] if "supports[1].fix = 'clamp' has no effect" in w]
+        assert bool(told) == (label == "both")
+        sag[label] = -r.arrays["positions"][-1, 16, 2]
+    EI = 2.0e11 * np.pi * 0.01 ** 4 / 64.0
+    assert sag["both"] == pytest.approx(sag["dofs"], rel=1e-12)
+    assert sag["both"] == pytest.approx(10.0 * 7 / 768 / EI, rel=0.01)   # propped cantilever
+    assert sag["clamp"] == pytest.approx(10.0 / 192 / EI, rel=0.01)      # fixed-fixed

@@ -72,8 +72,9 @@ def build_kirchhoff(scene: Scene, structure: Structure,
     """
     cosserat = "; use model.type = 'cosserat' for it"
     for i, support in enumerate(scene.supports):
-        if support.dofs is None and support.fix == "clamp":
-            raise SceneError(f"supports[{i}].fix", support.fix, "Kirchhoff threads have no "
-                             "rotations to clamp: use fix = 'pin'" + cosserat)
+        if support.clamped:
+            raise SceneError(f"supports[{i}].fix", support.fix or "clamp (the default)",
+                             "Kirchhoff threads have no rotations to clamp: use fix = 'pin'"
+                             + cosserat)
     hinges = hinges_of(scene, structure) if scene.model.bending else None
     return build_lumped(scene, structure, hinges)
