@@ -907,7 +907,7 @@ def rod_forces_range(x, quat, v, W, pos, rot, oq, oR, series, stiffness, tau, re
     (``pos_nodes``, ``rot_nodes``, ``offset_q``, ``offset_R``, ...), one by one (numba's
     parallel loops take no named tuples), and a block of elements is given as these arrays'
     rows (views): the loop then starts at 0, which lets the compiler drop the checks for
-    negative indices (a start passed as a number made a step 1.2 times as long).
+    negative indices.
 
     The equations of :func:`state_and_force_range` (the reference path; they agree to a few ulp),
     each element read straight from the node arrays and its rotation algebra without
@@ -1018,7 +1018,7 @@ def rod_forces(x, quat, v, W, rods, force, monitor, blocks):  # pragma: no cover
                          monitor)
         return _largest(monitor)
     for b in numba.prange(blocks):
-        lo, hi = b * n // blocks, (b + 1) * n // blocks   # the block's rows (no offsets: none)
+        lo, hi = b * n // blocks, (b + 1) * n // blocks   # (empty offset arrays stay empty)
         rod_forces_range(x, quat, v, W, pos[lo:hi], rot[lo:hi], oq[lo:hi], oR[lo:hi], series,
                          stiffness[lo:hi], tau[lo:hi], rest_length[lo:hi],
                          reference_strain[lo:hi], tension_only, kink, beta_angle, gamma_angle,
