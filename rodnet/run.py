@@ -678,11 +678,13 @@ def _energy_rise(p: Prepared, arrays: dict[str, NDArray[Any]]) -> list[str]:
         return []
     gravity = bool(any(sim.gravity))
     energy, motion = mechanical_energy(arrays, gravity)
+    gain = energy - energy[0]
+    gain[gain <= 1e-9 + 1e-9 * abs(energy[0])] = 0.0   # round-off, as in the energy guard
     if gravity:
-        rise = float(np.max((energy - energy[0]) / np.maximum(np.maximum.accumulate(motion),
-                                                              np.finfo(float).tiny)))
+        rise = float(np.max(gain / np.maximum(np.maximum.accumulate(motion),
+                                              np.finfo(float).tiny)))
     else:
-        rise = float(energy.max() / energy[0] - 1.0) if energy[0] > 0.0 else 0.0
+        rise = float(gain.max() / energy[0]) if energy[0] > 0.0 else 0.0
     if not rise > ENERGY_RISE:
         return []
     measure = ("the energy, gravity's potential included, rose by "
