@@ -72,6 +72,9 @@ class Prepared:
     """The saved frames' times (load steps of a static run)."""
     breaks: NDArray[np.float64]
     """The times a load's factor jumps or kinks, in ``times`` too."""
+    start_quat: NDArray[np.float64]
+    """The rotation nodes' quaternions (R, 4) at the start (the integrators advance the state in
+    place)."""
 
     @property
     def system(self) -> ThreadSystem:
@@ -122,13 +125,14 @@ def prepare(scene: Scene) -> Prepared:
     if scene.simulation.type == "static":
         _check_supported(built.system, built.structure, scene)
         times = np.arange(1, scene.simulation.load_steps + 1) / scene.simulation.load_steps
-        return Prepared(scene, built, times, times, np.zeros(0))
+        return Prepared(scene, built, times, times, np.zeros(0), built.state.q.quat.copy())
     _check_run_size(scene, built)
     frames = frame_times(scene.simulation.duration, scene.output.frame_interval)
     if scene.initial is not None and scene.initial.from_ is not None:
         built, frames = _restart(scene, built, frames)
     breaks = _breaks(frames, scene)
-    return Prepared(scene, built, np.union1d(frames, breaks), frames, breaks)
+    return Prepared(scene, built, np.union1d(frames, breaks), frames, breaks,
+                    built.state.q.quat.copy())
 
 
 FRAME_MEMORY = 8 * 2**30
@@ -617,18 +621,23 @@ def _shared_supports(p: Prepared) -> list[str]:
 
 def _loads_on_supports(p: Prepared) -> list[str]:
     """A warning for every ``[[loads]]`` entry whose node its supports hold along every
-    direction the load acts in (a force's nonzero global components, a moment's three
-    rotations): the supports take the whole load and the structure does not feel it."""
+    direction the load acts in (a force's nonzero global components, the rotations ``r1, r2,
+    r3`` of the node's material axes at the start that a moment turns): the supports take the
+    whole load and the structure does not feel it."""
     held: dict[int, set[str]] = {}
     for i, support in enumerate(p.scene.supports):
         node = p.structure.node(support.node, f"supports[{i}].node")
         held.setdefault(node, set()).update(support.fixed)
+    # the moments in the material axes (the scene's loads come first among the model's)
+    body = p.model.load_moments(p.start_quat) if hasattr(p.model, "load_moments") else None
     out = []
     for i, load in enumerate(p.scene.loads):
         node = p.structure.node(load.node, f"loads[{i}].node")
         acting = {axis for axis, c in zip(("x", "y", "z"), load.force) if c != 0.0}
         if any(c != 0.0 for c in load.moment):
-            acting |= {"r1", "r2", "r3"}
+            turned = np.abs(body[i]) > 1e-9 * np.abs(body[i]).max() if body is not None \
+                else np.ones(3, bool)
+            acting |= {f"r{k + 1}" for k in range(3) if turned[k]}
         if acting and acting <= held.get(node, set()):
             out.append(f"loads[{i}] acts on node {node} ('{load.node}'), which supports hold in "
                        f"every direction the load acts in ({', '.join(sorted(acting))}): the "

@@ -449,6 +449,47 @@ def test_a_load_its_supports_take_whole_is_said_so(tmp_path: Path) -> None:
     assert json.loads((out / "summary.json").read_text())["warnings"] == []
 
 
+def test_a_twist_its_support_holds_is_said_so_and_a_bend_is_not(tmp_path: Path) -> None:
+    """A moment along the rod's axis on a node whose support holds only its position and twist
+    (r1) is taken whole by the support (outside check: no warning, while a fully held node's
+    got one); a moment about a bending axis there bends the simply supported rod, untold."""
+    beam = """
+[simulation]
+type = "static"
+[model]
+axial = "linear"
+[[materials]]
+name = "steel"
+density = 7850.0
+youngs_modulus = 2.0e11
+diameter = 0.01
+[[rods]]
+name = "beam"
+material = "steel"
+points = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]
+elements = 10
+[[supports]]
+node = "beam:start"
+dofs = ["x", "y", "z", "r1"]
+[[supports]]
+node = "beam:end"
+dofs = ["y", "z"]
+[[loads]]
+node = "beam:start"
+moment = {moment}
+[output]
+vtk = false
+"""
+    told = {}
+    for label, moment in (("twist", "[0.01, 0.0, 0.0]"), ("bend", "[0.0, 0.01, 0.0]")):
+        r = run(scene_from_toml(beam.format(moment=moment)), tmp_path / label, progress=False)
+        assert r.status == "ok", r.message
+        told[label] = [w for w in r.summary["warnings"] if w.startswith("loads[0] acts on node 0")]
+        moved = np.abs(r.arrays["positions"][-1] - r.arrays["positions"][0]).max()
+        assert (moved == 0.0) == (label == "twist")
+    assert told["twist"] and "(r1)" in told["twist"][0] and not told["bend"]
+
+
 @pytest.mark.parametrize("axial", ["tension-only", "linear"])
 def test_a_tension_only_column_folded_inside_out_is_said_so(tmp_path: Path, axial: str) -> None:
     """A clamped rod pushed along its axis by 10 N (a tenth of its Euler load): with the linear

@@ -193,6 +193,13 @@ class CosseratModel:
             np.add.at(f, 3 * (self.n_nodes + self._load_rot) + k, body_moment[:, k])
         return f, body_moment
 
+    def load_moments(self, quat: FloatArray) -> FloatArray:
+        """The dead loads' moments (L, 3) [N m], without their time factors, in the body frames
+        of their rotation nodes at the quaternions ``quat`` (R, 4): the rotations ``r1, r2,
+        r3`` they turn."""
+        return np.einsum("lji,lj->li", so3.quat_to_matrix(quat[self._load_rot]),
+                         self.load_moment)
+
     @property
     def _load_rot(self) -> NDArray[np.int64]:
         return self.load_nodes if self.load_rot_nodes is None else self.load_rot_nodes
