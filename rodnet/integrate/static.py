@@ -392,7 +392,7 @@ def _static_increment(system: System, q_start: Configuration, load: float, optio
 
     problem = NewtonProblem(evaluate, shorten, small, merit, weights, rebase,
                             metric=system.dof_mass[free], length=system.length_scale,
-                            rebases=True)
+                            rebases=True, to_residual=True)
     result = newton(problem, np.zeros(n_free), scale, solver, options, history)
     if result.singular:
         bodies = ("; contact holds threads only along a body's normal, without friction in a "
