@@ -39,7 +39,8 @@ from rodnet.integrate.implicit import NEWTON_TARGET, SCHEMES, integrate_implicit
 from rodnet.integrate.newton import NewtonOptions
 from rodnet.integrate.rk45 import integrate_rk45
 from rodnet.integrate.static import STATIC_TIME, solve_static
-from rodnet.io.recorder import FrameCheck, Recorder, energy_guard, mechanical_energy
+from rodnet.io.recorder import (FrameCheck, Recorder, energy_gain, energy_guard,
+                                mechanical_energy)
 from rodnet.io.restart import restarted, saved_frame
 from rodnet.io.results import output_directory, scene_as_dict, write_npz, write_summary
 from rodnet.io.vtk import VtkSeries
@@ -645,6 +646,11 @@ def _loads_on_supports(p: Prepared) -> list[str]:
     return out
 
 
+def _has_implicit(p: Prepared) -> bool:
+    """Whether the scene's model runs with an implicit integrator (Kirchhoff threads do not)."""
+    return any(i in SCHEMES for i in MODELS[p.built.variant].supports.integrators)
+
+
 VISCOUS_STEP_FACTOR = 2.0
 """An explicit stability limit this many times shorter with the threads' damping than without
 it is said in the warnings (S10: strong Kelvin-Voigt damping shortens the limit as 1 / zeta)."""
@@ -661,7 +667,7 @@ def _viscous_step(p: Prepared) -> list[str]:
     damped, free = control.stable_step, control.undamped_step
     if not (np.isfinite(free) and free > VISCOUS_STEP_FACTOR * damped):
         return []
-    implicit = any(i in SCHEMES for i in MODELS[p.built.variant].supports.integrators)
+    implicit = _has_implicit(p)
     return [f"the explicit stability limit is {damped:.3g} s, {free / damped:.3g} times shorter "
             f"than the {free:.3g} s it would be without the threads' Kelvin-Voigt damping "
             "(S10, C48): materials.viscosity sets the step; a smaller viscosity"
@@ -687,8 +693,7 @@ def _energy_rise(p: Prepared, arrays: dict[str, NDArray[Any]]) -> list[str]:
         return []
     gravity = bool(any(sim.gravity))
     energy, motion = mechanical_energy(arrays, gravity)
-    gain = energy - energy[0]
-    gain[gain <= 1e-9 + 1e-9 * abs(energy[0])] = 0.0   # round-off, as in the energy guard
+    gain = energy_gain(energy, energy[0])
     if gravity:
         rise = float(np.max(gain / np.maximum(np.maximum.accumulate(motion),
                                               np.finfo(float).tiny)))
@@ -699,14 +704,14 @@ def _energy_rise(p: Prepared, arrays: dict[str, NDArray[Any]]) -> list[str]:
     measure = ("the energy, gravity's potential included, rose by "
                f"{100.0 * rise:.3g} % of the largest energy in motion") if gravity else \
         f"the kinetic and elastic energy rose by {100.0 * rise:.3g} %"
+    told = f"{measure} although nothing does work on the structure" + \
+        (" but gravity" if gravity else "")
     if scene.integrator != "explicit":
-        return [f"{measure} although nothing does work on the structure"
-                + (" but gravity" if gravity else "") + f": simulation.integrator = "
+        return [f"{told}: simulation.integrator = "
                 f"'{scene.integrator}' is not energy-stable where its steps leave stiff modes "
                 "unresolved (the midpoint rule on Cosserat rods: a steel pendulum at a fixed 2 ms "
                 "+6 %); use 'bdf2' or shorter steps (simulation.dt, dt_max or error_tolerance)"]
-    return [f"{measure} although nothing does work on the structure"
-            + (" but gravity" if gravity else "") + ": the explicit step "
+    return [f"{told}: the explicit step "
             f"(simulation.explicit_safety = {sim.explicit_safety:g}) is too long for the threads' "
             "snaps or contacts, which symplectic Euler takes with the force at the start of the "
             "step, and without damping nothing takes the gain away (undamped nets: within 0.4 % "
@@ -718,7 +723,7 @@ def _energy_stable_choice(p: Prepared) -> str:
     """The advice's last item: the implicit integrator that keeps the energy, where the model has
     one (Kirchhoff threads have none): the midpoint rule, or BDF2 with bodies (the midpoint
     rule is not energy-stable in contact)."""
-    if not any(i in SCHEMES for i in MODELS[p.built.variant].supports.integrators):
+    if not _has_implicit(p):
         return ""
     return ", or simulation.integrator = \"bdf2\"" if p.scene.bodies else ", or the midpoint rule"
 
