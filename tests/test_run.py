@@ -449,11 +449,7 @@ def test_a_load_its_supports_take_whole_is_said_so(tmp_path: Path) -> None:
     assert json.loads((out / "summary.json").read_text())["warnings"] == []
 
 
-def test_a_twist_its_support_holds_is_said_so_and_a_bend_is_not(tmp_path: Path) -> None:
-    """A moment along the rod's axis on a node whose support holds only its position and twist
-    (r1) is taken whole by the support (outside check: no warning, while a fully held node's
-    got one); a moment about a bending axis there bends the simply supported rod, untold."""
-    beam = """
+STEEL_BEAM = """
 [simulation]
 type = "static"
 [model]
@@ -467,7 +463,20 @@ diameter = 0.01
 name = "beam"
 material = "steel"
 points = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]
-elements = 10
+elements = {elements}
+{rest}
+[output]
+vtk = false
+"""
+"""A static steel beam, 1 m x 10 mm, along x: ``{elements}`` and its supports and loads
+(``{rest}``) to fill in."""
+
+
+def test_a_twist_its_support_holds_is_said_so_and_a_bend_is_not(tmp_path: Path) -> None:
+    """A moment along the rod's axis on a node whose support holds only its position and twist
+    (r1) is taken whole by the support (outside check: no warning, while a fully held node's
+    got one); a moment about a bending axis there bends the simply supported rod, untold."""
+    beam = STEEL_BEAM.format(elements=10, rest="""
 [[supports]]
 node = "beam:start"
 dofs = ["x", "y", "z", "r1"]
@@ -477,9 +486,7 @@ dofs = ["y", "z"]
 [[loads]]
 node = "beam:start"
 moment = {moment}
-[output]
-vtk = false
-"""
+""")
     told = {}
     for label, moment in (("twist", "[0.01, 0.0, 0.0]"), ("bend", "[0.0, 0.01, 0.0]")):
         r = run(scene_from_toml(beam.format(moment=moment)), tmp_path / label, progress=False)
@@ -1008,21 +1015,7 @@ def test_fix_beside_dofs_is_told_to_have_no_effect(tmp_path: Path) -> None:
     cantilever's deflection where fixed-fixed was meant): dofs is the whole set, and the run
     says that fix did nothing; without fix the same support is not warned of, and a support
     with neither key is a clamp."""
-    beam = """
-[simulation]
-type = "static"
-[model]
-axial = "linear"
-[[materials]]
-name = "steel"
-density = 7850.0
-youngs_modulus = 2.0e11
-diameter = 0.01
-[[rods]]
-name = "beam"
-material = "steel"
-points = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]
-elements = 32
+    beam = STEEL_BEAM.format(elements=32, rest="""
 [[supports]]
 node = "beam:start"
 [[supports]]
@@ -1031,9 +1024,7 @@ node = "beam:end"
 [[loads]]
 node = "beam:16"
 force = [0.0, 0.0, -10.0]
-[output]
-vtk = false
-"""
+""")
     sag = {}
     for label, end in (("both", 'fix = "clamp"\ndofs = ["y", "z"]'), ("dofs", 'dofs = ["y", "z"]'),
                        ("clamp", "")):
