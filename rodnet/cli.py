@@ -222,6 +222,21 @@ def _command(argv: list[str] | None) -> int:
     except SceneError as exc:
         print(f"rodnet: bad input: {exc}. Nothing was run and no output was written.", file=sys.stderr)
         return EXIT_BAD_INPUT
+    warm = None
+    if len(runs) > 1:   # the demo's later kernels compile on a second core meanwhile
+        from rodnet.tools.precompile import warm_up
+
+        warm = warm_up(args.overrides, args.threads)
+    try:
+        return _run_all(runs, args)
+    finally:
+        if warm is not None and warm.is_alive():
+            warm.terminate()
+
+
+def _run_all(runs, args: argparse.Namespace) -> int:  # type: ignore[no-untyped-def]
+    """Run the ``(label, scene, folder)`` of ``runs`` in turn (stopping at the first that does
+    not end ok) and, for the demo's two, compare them; returns the exit status."""
     results = []
     for label, scene, folder in runs:
         if len(runs) > 1:

@@ -561,6 +561,15 @@ def _frame_function(p: Prepared) -> Callable[[float, State], dict[str, Any]]:
     return frame_of
 
 
+def compile_frames(scene: Scene) -> None:
+    """Compute ``scene``'s first frame and throw it away: compiles (and caches) the kernels of
+    a run's frames without stepping. ``rodnet demo`` does this in a second process while its
+    first run compiles the explicit loop, which the integrator compiles before the first frame
+    (:func:`rodnet.tools.precompile.warm_up`)."""
+    p = prepare(scene)
+    _frame_function(p)(float(p.times[0]), p.state)
+
+
 def _closed_rods(p: Prepared) -> list[str]:
     """A warning for every ``[[rods]]`` entry whose last point lies on its first (within 1e-6 of
     its length): its two end nodes are not joined, so a ring or frame posed that way is open

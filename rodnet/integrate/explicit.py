@@ -99,7 +99,12 @@ def integrate_explicit(system: System, state: State, times: NDArray[np.float64],
     rods = problem.rods.rest_length.shape[0] > 0
     nodes_only = node_forces_only(problem, control)   # the fused loop of nodes-only problems
     stats = StepStats() if stats is None else stats  # filled in place: kept if the run fails
-    on_frame(float(times[0]), state)
+    t0 = float(times[0])   # a call of no steps compiles the loop before the first frame's outputs
+    if nodes_only:
+        march_nodes(x, v, t0, t0, 0, control.dt, problem, work.f_node)
+    else:
+        loop(x, quat, v, W, bodies, t0, t0, 0, control.dt, problem, control, work)
+    on_frame(t0, state)
     for t_start, t_end in zip(times[:-1], times[1:]):
         n, h = whole_steps(t_start, t_end, control.dt)
         pieces = -(-n // CALL_STEPS)

@@ -12,10 +12,12 @@ compiles those on its first call.
 from __future__ import annotations
 
 import os
+import signal
 import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor
 from multiprocessing import get_context
+from multiprocessing.process import BaseProcess
 from typing import NamedTuple
 
 from rodnet.demo import demo_scenes
@@ -126,3 +128,42 @@ def precompile(processes: int | None = None,
                 say(f"  {label}: {cpu:.1f} CPU s ({status})")
                 statuses.append(status)
     return time.time() - start, all(status == "ok" for status in statuses)
+
+
+def _compile_rest_of_demo(rods: Scene, lumped: Scene, threads: int | None) -> None:
+    """The process of :func:`warm_up`: the frames' kernels of the Cosserat run, then a short
+    lumped run; at a lower priority, silent (a kernel it has not cached in time is compiled by
+    the run that needs it)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)   # Ctrl-C is the demo's: it ends this process
+    try:
+        os.nice(10)
+        from rodnet.run import compile_frames
+
+        compile_frames(rods)
+        with tempfile.TemporaryDirectory(prefix="rodnet-warm-") as folder:
+            _warm(Warm("lumped reference", lumped, threads), folder)
+    except Exception:  # noqa: S110  (nothing to report: the runs compile what is missing)
+        pass
+
+
+def warm_up(overrides: list[str], threads: int | None) -> BaseProcess | None:
+    """Start compiling, on a second core, the kernels ``rodnet demo`` needs after its Cosserat
+    run's step loop: that run's frames and the lumped run. The explicit integrator compiles its
+    loop before the first frame, so the two compile side by side on a first run after
+    installing (a warm run loads both from the cache in a second). Returns the process (a
+    daemon: it ends with the demo), or None on a single core.
+
+    Parameters
+    ----------
+    overrides : list of str
+        The demo's ``--set`` overrides (they choose the kernels: another integrator, model).
+    threads : int or None
+        The demo's ``--threads``.
+    """
+    if (os.cpu_count() or 1) < 2:
+        return None
+    (_, rods, _), (_, lumped, _) = demo_scenes([*overrides, *SHORT], quick=False)
+    process = get_context("spawn").Process(target=_compile_rest_of_demo,
+                                           args=(rods, lumped, threads), daemon=True)
+    process.start()
+    return process

@@ -75,3 +75,30 @@ def test_a_run_that_fails_is_reported_not_raised(monkeypatch: pytest.MonkeyPatch
     assert not ok and seconds > 0.0
     assert len(lines) == 1 and lines[0].startswith("  a step too long:")
     assert "failed: SceneError" in lines[0]
+
+
+WARM = r"""
+import sys
+from rodnet.demo import demo_scenes
+from rodnet.tools.precompile import SHORT, _compile_rest_of_demo
+(_, rods, _), (_, lumped, _) = demo_scenes(list(SHORT), False)
+_compile_rest_of_demo(rods, lumped, None)
+"""
+
+
+@pytest.mark.slow
+def test_the_demos_warm_up_leaves_only_the_cosserat_loop_to_compile(tmp_path: Path) -> None:
+    """What ``rodnet demo`` compiles on a second core (the Cosserat run's frames, the lumped
+    run) is what its runs then load from the cache: they compile the Cosserat loop alone."""
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
+    done = subprocess.run([sys.executable, "-c", WARM], env=env, cwd=tmp_path,
+                          capture_output=True, text=True)
+    assert done.returncode == 0 and done.stderr == "", done.stderr
+    probe = subprocess.run([sys.executable, "-c", PROBE.replace("(None, 1)", "(None,)"),
+                            str(tmp_path / "runs")], env=env, cwd=tmp_path,
+                           capture_output=True, text=True)
+    assert probe.returncode == 0, probe.stderr
+    compiled = set(json.loads(probe.stdout.splitlines()[-1]))
+    assert compiled & {"march_parallel_free", "march_free"}
+    assert not compiled & {"_section_state_kernel", "_step_potential_kernel", "element_pose",
+                           "element_velocities", "march_nodes", "segment_states"}, compiled
