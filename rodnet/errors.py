@@ -37,6 +37,11 @@ class SceneError(ValueError):
         return SceneError(key, self.value, self.allowed)
 
 
+SHOWN_ITEMS = 10
+"""The longest list :func:`shown` writes out in full; a longer one is cut after its first
+eight items, with its length."""
+
+
 def shown(value: Any) -> str:
     """``value`` as it is written in a scene file (TOML): ``true``, ``'text'``, ``[1.0, 2]``."""
     if isinstance(value, np.generic):
@@ -50,6 +55,9 @@ def shown(value: Any) -> str:
             return f"'{value}'"
         return '"' + value.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") + '"'
     if isinstance(value, (list, tuple)):
+        if len(value) > SHOWN_ITEMS:   # a message quotes the start of a long list
+            return ("[" + ", ".join(shown(v) for v in value[:SHOWN_ITEMS - 2])
+                    + f", ... ({len(value)} items)]")
         return "[" + ", ".join(shown(v) for v in value) + "]"
     if isinstance(value, dict):
         return "{" + ", ".join(f"{k} = {shown(v)}" for k, v in value.items()) + "}"

@@ -119,10 +119,11 @@ class Prepared:
 def prepare(scene: Scene) -> Prepared:
     """Build the system and check the stepping plan; raises :class:`SceneError` on bad input."""
     built = build(scene)
-    if not built.system.free.any():
+    contact = built.system.contact
+    if not built.system.free.any() and not (contact and len(contact.moving)):
         raise SceneError("supports", f"{len(scene.supports)} entries",
-                         "hold every degree of freedom of the structure: nothing can move; "
-                         "free a node or a direction to run the scene")
+                         "hold every degree of freedom of the structure and there is no free "
+                         "body: nothing can move; free a node or a direction to run the scene")
     if scene.simulation.type == "static":
         _check_supported(built.system, built.structure, scene)
         times = np.arange(1, scene.simulation.load_steps + 1) / scene.simulation.load_steps

@@ -361,9 +361,9 @@ def build_lumped(scene: Scene, structure: Structure,
                                                       "gravity_force", "load_nodes", "load_force")),
                   *model.load_schedule, *model.hinges):
         array.setflags(write=False)
-    if not math.isfinite(model.stable_step()):
+    if not math.isfinite(model.stable_step()) and not scene.bodies:
         raise SceneError("supports", [s.node for s in scene.supports],
-                         "every node is supported: nothing can move")
+                         "every node is supported and there is no body: nothing can move")
     v0 = structure.velocities.copy()
     v0[model.inv_mass == 0.0] = 0.0
     return model, Configuration(structure.positions.copy()), v0.ravel()

@@ -10,6 +10,7 @@ import pytest
 
 from rodnet.integrate.explicit import integrate_explicit
 from rodnet.kernels import so3
+from rodnet.errors import SceneError
 from rodnet.run import RunResult, prepare
 from rodnet.scene import scene_from_toml
 from tests.contact.scenes import cord, run_ok
@@ -308,3 +309,63 @@ def test_mass_on_an_inclined_plane_below_the_friction_angle_sticks() -> None:
     assert creep - h * G * np.sin(angle) < u[-1] < creep
     assert u[-1] == pytest.approx(u[len(u) // 2], rel=1e-6)
     assert s[-1] - s[0] < 1.0e-3
+
+
+def floor_and_box(integrator: str, body: bool = True) -> str:
+    """A 1 kg box (0.2 x 0.2 x 0.1 m) sliding at 2 m/s along two pinned 10 mm lumped rods (every
+    node held: only the box can move) under gravity, friction 0.3."""
+    supports = "".join(f'[[supports]]\nnode = "{rod}:{k}"\nfix = "pin"\n'
+                       for rod in ("left", "right") for k in range(11))
+    box = """
+[[bodies]]
+name = "box"
+shape = "box"
+size = [0.2, 0.2, 0.1]
+mass = 1.0
+position = [0.3, 0.0, 0.0551]
+velocity = [2.0, 0.0, 0.0]
+""" if body else ""
+    return f"""
+[simulation]
+duration = 0.2
+integrator = "{integrator}"
+gravity = [0.0, 0.0, -9.81]
+[model]
+type = "lumped"
+[[materials]]
+name = "floor"
+density = 1000.0
+youngs_modulus = 1.0e9
+diameter = 0.01
+[[rods]]
+name = "left"
+material = "floor"
+points = [[0.0, -0.05, 0.0], [1.0, -0.05, 0.0]]
+elements = 10
+[[rods]]
+name = "right"
+material = "floor"
+points = [[0.0, 0.05, 0.0], [1.0, 0.05, 0.0]]
+elements = 10
+{supports}{box}
+[contact]
+stiffness = 1.0e5
+damping = 100.0
+friction = 0.3
+[output]
+frame_interval = 0.01
+vtk = false
+"""
+
+
+@pytest.mark.parametrize("integrator", ["explicit", "bdf2"])
+def test_a_box_slides_on_threads_held_at_every_node(integrator: str) -> None:
+    """A structure held at every node runs when a free body can move (the box decelerates at
+    mu g); without the body it is refused, its long list of supports cut short."""
+    r = run_ok(floor_and_box(integrator))
+    t, u = r.arrays["time"], r.arrays["body_velocities"][:, 0, 0]
+    i1, i2 = np.searchsorted(t, 0.05), np.searchsorted(t, 0.2)
+    assert (u[i1] - u[i2]) / (t[i2] - t[i1]) == pytest.approx(0.3 * G, rel=0.02)
+    with pytest.raises(SceneError, match=r"nothing can move") as refused:
+        prepare(scene_from_toml(floor_and_box(integrator, body=False)))
+    assert "'left:7', ... (22 items)]: every node is supported" in str(refused.value)
