@@ -126,6 +126,8 @@ def prepare(scene: Scene) -> Prepared:
                          "body: nothing can move; free a node or a direction to run the scene")
     if scene.simulation.type == "static":
         _check_supported(built.system, built.structure, scene)
+        if scene.initial is not None and scene.initial.from_ is not None:
+            built = _static_start(scene, built)
         times = np.arange(1, scene.simulation.load_steps + 1) / scene.simulation.load_steps
         return Prepared(scene, built, times, times, np.zeros(0), built.state.q.quat.copy())
     _check_run_size(scene, built)
@@ -196,6 +198,17 @@ def _restart(scene: Scene, built: Built, frames: NDArray[np.float64]
     later = frames[frames > t0 + 1e-9 * scene.output.frame_interval]
     start = frames[on_grid][:1] if on_grid.any() else np.array([t0])
     return dataclasses.replace(built, state=state), np.concatenate([start, later])
+
+
+def _static_start(scene: Scene, built: Built) -> Built:
+    """``built`` whose static solves start from the positions and rotations of the saved frame
+    ``[initial]`` names (its velocities, time and bodies left out: a static run's bodies are
+    fixed where the scene puts them)."""
+    assert scene.initial is not None
+    _, frame = saved_frame(scene.initial)
+    threads = {k: v for k, v in frame.items() if not k.startswith("body_")}
+    state = restarted(built.state, threads, lambda saved: None, False, str(scene.initial.from_))
+    return dataclasses.replace(built, state=dataclasses.replace(state, v=np.zeros_like(state.v)))
 
 
 def _breaks(frames: NDArray[np.float64], scene: Scene) -> NDArray[np.float64]:

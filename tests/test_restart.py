@@ -120,3 +120,60 @@ def test_incompatible_or_missing_runs_are_refused_by_key(tmp_path: Path) -> None
             run(scene_from_toml(text), tmp_path / "out", progress=False)
         assert key in str(err.value), (key, str(err.value))
         assert not (tmp_path / "out").exists()
+
+
+
+def _arch(q0: float, steps: int, extra: str = "", elements: int = 20) -> str:
+    """A shallow sinusoidal arch (span 1 m, rise 4 mm, EI 1 N m^2, EA 1e6 N) between pins, held
+    in its plane, under the downward load q0 sin(pi x) [N/m] on its nodes; its limit load is
+    about q0 = 0.78 N/m."""
+    x = np.linspace(0.0, 1.0, elements + 1)
+    points = [[float(a), float(0.004 * np.sin(np.pi * a)), 0.0] for a in x]
+    supports = ('[[supports]]\nnode = "arch:start"\ndofs = ["x", "y", "z", "r1"]\n'
+                '[[supports]]\nnode = "arch:end"\ndofs = ["x", "y", "z"]\n'
+                + "".join(f'[[supports]]\nnode = "arch:{k}"\ndofs = ["z"]\n'
+                          for k in range(1, elements)))
+    loads = "".join(f'[[loads]]\nnode = "arch:{k}"\n'
+                    f"force = [0.0, {-q0 * np.sin(np.pi * x[k]) / elements}, 0.0]\n"
+                    for k in range(1, elements))
+    return f"""
+[simulation]
+type = "static"
+load_steps = {steps}
+[model]
+type = "cosserat"
+axial = "linear"
+[[materials]]
+name = "m"
+density = 7800.0
+youngs_modulus = 2.0e11
+diameter = 0.01
+axial_stiffness = 1.0e6
+shear_stiffness = 1.0e7
+bending_stiffness = 1.0
+torsional_stiffness = 1.0
+[[rods]]
+name = "arch"
+material = "m"
+points = {points}
+elements = {elements}
+{supports}{loads}{extra}
+[output]
+vtk = false
+"""
+
+
+def test_a_static_run_starts_its_solve_from_a_saved_frame(tmp_path: Path) -> None:
+    """Below its limit load a shallow arch has two stable equilibria: a static run started from
+    a saved frame of the snapped arch finds the inverted one, a run from the scene's own shape
+    the upright one (both in equilibrium: the supports carry the load)."""
+    snapped = run(scene_from_toml(_arch(1.5 * 0.78, 20)), tmp_path / "snapped", progress=False)
+    assert snapped.status == "ok" and snapped.arrays["positions"][-1, 10, 1] < -0.004
+    middle = {}
+    for label, extra in (("own", ""), ("saved", f'[initial]\nfrom = "{tmp_path / "snapped"}"')):
+        r = run(scene_from_toml(_arch(0.95 * 0.78, 10, extra)), tmp_path / label, progress=False)
+        assert r.status == "ok"
+        middle[label] = r.arrays["positions"][-1, 10, 1]
+        load = 0.95 * 0.78 * np.sin(np.pi * np.linspace(0.0, 1.0, 21)[1:-1]).sum() / 20
+        assert r.arrays["support_reactions"][-1][:, 1].sum() == pytest.approx(load, rel=1e-6)
+    assert middle["saved"] < -0.003 and middle["own"] > 0.0
