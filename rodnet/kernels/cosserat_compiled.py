@@ -640,7 +640,7 @@ def _state_and_force(rest_length, reference_strain, stiffness, tau, x, q, veloci
                               monitor_out)
 
 
-@numba.njit(cache=True, parallel=True)
+@numba.njit(cache=True, parallel=threads.PRANGE_ONLY)
 def _internal_force_kernel(rest_length, reference_strain, stiffness, tau, x, q, velocity,
                            tension_only, kink, series, beta_angle, gamma_angle, step_reference,
                            inv_h):  # pragma: no cover - compiled
@@ -654,7 +654,7 @@ def _internal_force_kernel(rest_length, reference_strain, stiffness, tau, x, q, 
     return force
 
 
-@numba.njit(cache=True, parallel=True)
+@numba.njit(cache=True, parallel=threads.PRANGE_ONLY)
 def _internal_force_andtangents_kernel(rest_length, reference_strain, stiffness, tau, x, q,
                                         velocity, tension_only, kink, series, beta_angle,
                                         gamma_angle, step_reference, inv_h, strain_shift, force,

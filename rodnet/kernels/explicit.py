@@ -43,6 +43,7 @@ import numpy as np
 from rodnet.kernels.contact_compiled import (ContactData, ContactScratch, accumulate_contact,
                                              body_speed, forget_clearance, largest_speed,
                                              select_bodies)
+from rodnet.kernels import threads
 from rodnet.kernels.cosserat_compiled import RodElements, rod_forces, scatter_forces
 from rodnet.kernels.hinge import Hinges
 from rodnet.kernels.rigid_body import advance_bodies
@@ -464,7 +465,7 @@ def march(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control,
     return _march(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control, scratch)
 
 
-@numba.njit(cache=True, parallel=True, error_model="numpy")
+@numba.njit(cache=True, parallel=threads.PRANGE_ONLY, error_model="numpy")
 def march_parallel(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control,
                    scratch):  # pragma: no cover - compiled
     """:func:`march` with the loops over rod elements and nodes on numba's threads."""
@@ -478,7 +479,7 @@ def march_free(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control,
     return _march_free(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control, scratch)
 
 
-@numba.njit(cache=True, parallel=True, error_model="numpy")
+@numba.njit(cache=True, parallel=threads.PRANGE_ONLY, error_model="numpy")
 def march_parallel_free(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, control,
                         scratch):  # pragma: no cover - compiled
     """:func:`march_parallel` for a problem without rigid bodies (compiled without contact)."""

@@ -37,6 +37,14 @@ two threads made an explicit rod step 1.10 times as fast at 32 elements, 1.34 at
 176 and 1.55 - 1.66 from 296 on, on a quiet 2-core machine (validation/benchmarks/threads.py)."""
 
 
+PRANGE_ONLY = {"prange": True, "reduction": True, "comprehension": False, "inplace_binop": False,
+               "setitem": False, "numpy": False, "stencil": False, "fusion": False}
+"""numba's ``parallel`` options of rodnet's parallel kernels: their ``prange`` loops (and the
+sums in them) on the threads, and no search for array expressions to turn into parallel loops,
+which finds nothing worth it there (a zeroed array of moments) and cost about 0.9 s of the
+explicit loop's 10 s compile (validation/benchmarks/results/cold_start.md)."""
+
+
 def configure() -> None:
     """Set the wait policy and threading layer of numba's parallel loops, unless the user's
     environment sets them: before numba starts its thread pool (its first parallel loop)."""

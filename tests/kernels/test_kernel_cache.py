@@ -155,8 +155,10 @@ def _compiled_functions() -> dict[str, tuple[str, bool, set[str]]]:
                 target = call.func if call else dec
                 if not (isinstance(target, ast.Attribute) and target.attr in ("njit", "jit")):
                     continue
-                parallel = any(k.arg == "parallel" and isinstance(k.value, ast.Constant)
-                               and k.value.value for k in (call.keywords if call else []))
+                # parallel=True or parallel=<options> (threads.PRANGE_ONLY)
+                parallel = any(k.arg == "parallel" and not (isinstance(k.value, ast.Constant)
+                                                            and not k.value.value)
+                               for k in (call.keywords if call else []))
                 calls = {c.func.id if isinstance(c.func, ast.Name) else c.func.attr
                          for c in ast.walk(node) if isinstance(c, ast.Call)
                          and isinstance(c.func, (ast.Name, ast.Attribute))}
