@@ -825,7 +825,10 @@ def _warnings(p: Prepared, stats: StepStats, monitors: dict[str, float],
                       if e["jump_from"] == 0.0 else "far more per load than before")
                    + "): the load passed a limit point (a "
                    "snap-through) or a bifurcation (buckling), and the states from there on are "
-                   "on another branch of equilibria; the path between them was not followed")
+                   "on another branch of equilibria; the path between them was not followed"
+                   + (f" (it jumped again {e['jumps_later']:.0f} time(s), the last between "
+                      f"{e['last_jump_from']:.4g} and {e['last_jump_to']:.4g})"
+                      if e.get("jumps_later") else ""))
     if stats.extra.get("unstable"):
         out.append("the static equilibrium found is unstable: its tangent stiffness has a "
                    "negative eigenvalue (a link or column in compression that would buckle, a "

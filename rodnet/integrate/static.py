@@ -195,13 +195,17 @@ def _watch_jump(system: System, q: Configuration, q_new: Configuration, lam: flo
     """The motion per load factor [m] of the load step from ``q`` at ``lam`` to ``q_new`` at
     ``trial`` (an unstable equilibrium left included); where it jumps (:data:`JUMP_FACTOR`),
     the first jump's load factors go to ``stats.extra`` (``jump_from``, ``jump_to``,
-    ``jump_move`` [m]). Load control follows the path of equilibria only up to a limit point
+    ``jump_move`` [m]), the later ones' count and last load factors to ``jumps_later``,
+    ``last_jump_from``, ``last_jump_to``. Load control follows the path of equilibria only up to a limit point
     (a snap-through) or a bifurcation (buckling): past it Newton lands on another branch."""
     move = float(np.max(np.linalg.norm(q_new.x - q.x, axis=1), initial=0.0))
     now = move / max(trial - lam, 1e-300)
-    if rate > 0.0 and now > JUMP_FACTOR * rate and move > JUMP_SIZE * system.length_scale \
-            and "jump_from" not in stats.extra:
-        stats.extra.update(jump_from=lam, jump_to=trial, jump_move=move)
+    if rate > 0.0 and now > JUMP_FACTOR * rate and move > JUMP_SIZE * system.length_scale:
+        if "jump_from" not in stats.extra:
+            stats.extra.update(jump_from=lam, jump_to=trial, jump_move=move)
+        else:
+            stats.extra.update(jumps_later=stats.extra.get("jumps_later", 0.0) + 1.0,
+                               last_jump_from=lam, last_jump_to=trial)
     return now
 
 

@@ -1041,3 +1041,50 @@ def test_a_stiff_cables_reactions_carry_its_weight(tmp_path: Path, E: float) -> 
     lift = r.arrays["support_reactions"][-1][:, 2].sum()
     print(E, "reactions / weight", lift / weight, r.summary["newton_iterations"])
     assert lift == pytest.approx(weight, rel=1e-6)
+
+
+PINNED_COLUMN = """
+[simulation]
+type = "static"
+load_steps = 10
+[model]
+type = "cosserat"
+axial = "linear"
+[[materials]]
+name = "m"
+density = 1000.0
+youngs_modulus = 1.0e9
+diameter = 0.01
+axial_stiffness = 1.0e7
+shear_stiffness = 1.0e7
+bending_stiffness = 1.0
+torsional_stiffness = 1.0
+[[rods]]
+name = "c"
+material = "m"
+points = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]
+elements = 40
+[[supports]]
+node = "c:start"
+dofs = ["x", "y", "z", "r1"]
+[[supports]]
+node = "c:end"
+dofs = ["y", "z"]
+[[loads]]
+node = "c:end"
+force = [-25.07866478316806, 0.0, 0.0]
+[output]
+vtk = false
+"""
+"""A pinned-pinned column (EI 1 N m^2, 1 m) under 2.541 times its buckling load, an outside
+check's scene: it buckles between load factors 0.3 and 0.4 and jumps twice more, the last time
+into straight tension with its free end past the fixed one."""
+
+
+def test_every_jump_of_a_static_path_is_told(tmp_path: Path) -> None:
+    r = run(scene_from_toml(PINNED_COLUMN), tmp_path, progress=False)
+    assert r.status == "ok", r.message
+    told = [w for w in r.summary["warnings"] if "jumped" in w]
+    assert len(told) == 1 and told[0].startswith("between load factors 0.3 and 0.4")
+    assert "(it jumped again 2 time(s), the last between 0.8 and 0.9)" in told[0]
+    assert r.arrays["positions"][-1, -1, 0] < 0.0    # its end past the other one
