@@ -1084,3 +1084,42 @@ def test_an_implicit_run_that_gains_energy_says_so(tmp_path: Path) -> None:
         assert (gain > 0.05 * motion.max()) == rises, (integrator, dt, gain / motion.max())
         told = [w for w in r.summary["warnings"] if "is not energy-stable" in w]
         assert bool(told) == rises
+
+
+PUSHED_THROUGH = """
+[simulation]
+duration = 0.02
+integrator = "{integrator}"
+[[materials]]
+name = "kevlar"
+density = 1440.0
+youngs_modulus = 7.0e10
+diameter = 0.001
+[[rods]]
+name = "r"
+material = "kevlar"
+points = [[0.2282, 0.0714, -0.1409], [0.27393, 0.23638, 0.30585]]
+elements = 1
+[[loads]]
+node = "r:end"
+force = [-3.7526, -0.2271, -4.4846]
+[output]
+vtk = false
+"""
+"""One free tension-only Cosserat element (0.48 m of 1 mm Kevlar) whose end a 5.9 N force pushes
+back through the other end: the midpoint rule's step control shrank its steps to 1e-8 s and
+crawled (an outside check's scene: 11,000 steps in 30 s for 4e-4 s of the 0.02 s)."""
+
+
+def test_an_implicit_run_that_finds_no_usable_step_stops_and_says_why(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from rodnet.integrate import implicit
+
+    monkeypatch.setattr(implicit, "CRAWL_STEPS", 300)   # 20,000 in a run: about a minute here
+    r = run(scene_from_toml(PUSHED_THROUGH.format(integrator="midpoint")), tmp_path / "mid",
+            progress=False)
+    assert r.status == "failed" and "steps since the last frame" in r.message
+    assert "another integrator (bdf2" in r.message and len(r.arrays["time"]) == 1
+    damped = run(scene_from_toml(PUSHED_THROUGH.format(integrator="bdf2")), tmp_path / "bdf2",
+                 progress=False)
+    assert damped.status == "ok" and damped.summary["steps"] < 300
