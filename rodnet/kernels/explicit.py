@@ -201,25 +201,48 @@ def _forces(t, x, quat, v, W, p, s, blocks):  # pragma: no cover - compiled
     """Every force and moment on the nodes at time ``t`` into ``s.f_node``, ``s.m_node``,
     contact aside (the rod elements in ``blocks`` blocks); returns the largest axial force [N]
     and element rotation [rad]."""
+    _dead_forces(t, quat, p, s)
+    peak = 0.0
+    seg = p.segments
+    if seg.pairs.shape[0] > 0:
+        peak = segment_forces(x, v, s.f_node, seg.pairs, seg.rest_length, seg.EA, seg.etaA,
+                              seg.kink_strain, seg.tension_only)
+    h = p.hinges
+    if h.nodes.shape[0] > 0:
+        hinge_forces(x, v, s.f_node, h.nodes, h.stiffness, h.tau, h.rest)
+    rod_peak, phi = _rod_element_forces(x, quat, v, W, p, s, blocks)
+    return max(peak, rod_peak), phi
+
+
+@numba.njit(inline="always")
+def _rods_forces(t, x, quat, v, W, p, s, blocks):  # pragma: no cover - compiled
+    """:func:`_forces` of a problem without segments and hinges (rod models), which the loop
+    without bodies runs: the same arithmetic, compiled without the segments' and hinges' code."""
+    _dead_forces(t, quat, p, s)
+    return _rod_element_forces(x, quat, v, W, p, s, blocks)
+
+
+@numba.njit(inline="always")
+def _dead_forces(t, quat, p, s):  # pragma: no cover - compiled
+    """``s.f_node`` the nodes' weights plus the loads at time ``t``, ``s.m_node`` the loads'
+    moments."""
     f_node, m_node = s.f_node, s.m_node
     for i in range(f_node.shape[0]):
         for k in range(3):
             f_node[i, k] = p.nodes.weight[i, k]
     m_node[:, :] = 0.0
     _apply_loads(t, quat, p.loads, f_node, m_node)
-    peak, phi = 0.0, 0.0
-    seg = p.segments
-    if seg.pairs.shape[0] > 0:
-        peak = segment_forces(x, v, f_node, seg.pairs, seg.rest_length, seg.EA, seg.etaA,
-                              seg.kink_strain, seg.tension_only)
-    h = p.hinges
-    if h.nodes.shape[0] > 0:
-        hinge_forces(x, v, f_node, h.nodes, h.stiffness, h.tau, h.rest)
+
+
+@numba.njit(inline="always")
+def _rod_element_forces(x, quat, v, W, p, s, blocks):  # pragma: no cover - compiled
+    """The rod elements' forces added to ``s.f_node``, ``s.m_node``; returns their largest axial
+    force [N] and element rotation [rad] (0, 0 without rod elements)."""
     rods = p.rods
-    if rods.rest_length.shape[0] > 0:
-        rod_peak, phi = rod_forces(x, quat, v, W, rods, s.force, s.monitor, blocks)
-        peak = max(peak, rod_peak)
-        scatter_forces(s.force, rods.pos_nodes, rods.rot_nodes, rods.offset_R, f_node, m_node)
+    if rods.rest_length.shape[0] == 0:
+        return 0.0, 0.0
+    peak, phi = rod_forces(x, quat, v, W, rods, s.force, s.monitor, blocks)
+    scatter_forces(s.force, rods.pos_nodes, rods.rot_nodes, rods.offset_R, s.f_node, s.m_node)
     return peak, phi
 
 
@@ -368,7 +391,11 @@ def _loop(with_bodies: bool):  # type: ignore[no-untyped-def]
     """The loop of :func:`march` (see the module docstring), compiled inline into each of the
     entry points; ``with_bodies`` False leaves the contact and the bodies' step out (numba drops
     the branches on a constant), which saves a third of compiling the loop of rods
-    (validation/benchmarks/results/cold_start.md)."""
+    (validation/benchmarks/results/cold_start.md). The loop without bodies runs rod models
+    only (the lumped model without bodies has :func:`march_nodes`), so it is compiled without
+    the segments' and hinges' forces (:func:`_rods_forces`).
+    """
+    forces_of = _forces if with_bodies else _rods_forces
 
     @numba.njit(inline="always")
     def march_loop(x, quat, v, W, bodies, t0, t_end, n0, h0, p, control,
@@ -388,7 +415,7 @@ def _loop(with_bodies: bool):  # type: ignore[no-untyped-def]
                 t = t_seg + k * h_seg
             elif not t < t_end:
                 break
-            step_peak, phi = _forces(t, x, quat, v, W, p, s, control.blocks)
+            step_peak, phi = forces_of(t, x, quat, v, W, p, s, control.blocks)
             evaluations += 1
             if fixed:
                 h_full, h, last = h_seg, h_seg, False
@@ -488,9 +515,10 @@ def march_parallel_free(x, quat, v, W, bodies, t0, t_end, n0, h0, problem, contr
 
 def march_for(problem: ExplicitProblem, parallel: bool):  # type: ignore[no-untyped-def]
     """The compiled loop that runs ``problem``: :func:`march` or, ``parallel``,
-    :func:`march_parallel`, each without contact when the problem has no bodies (the same
-    arithmetic: a problem without bodies never enters the branches left out)."""
-    if problem.contact.kind.shape[0] > 0:
+    :func:`march_parallel`, each without contact, segments and hinges when the problem has
+    none of them (the same arithmetic: such a problem never enters the branches left out)."""
+    nodes = problem.segments.pairs.shape[0] > 0 or problem.hinges.nodes.shape[0] > 0
+    if problem.contact.kind.shape[0] > 0 or nodes:
         return march_parallel if parallel else march
     return march_parallel_free if parallel else march_free
 
