@@ -99,11 +99,14 @@ def integrate_explicit(system: System, state: State, times: NDArray[np.float64],
     rods = problem.rods.rest_length.shape[0] > 0
     nodes_only = node_forces_only(problem, control)   # the fused loop of nodes-only problems
     stats = StepStats() if stats is None else stats  # filled in place: kept if the run fails
+
+    def march(a: float, b: float, steps: int, h: float):  # type: ignore[no-untyped-def]
+        if nodes_only:
+            return march_nodes(x, v, a, b, steps, h, problem, work.f_node)
+        return loop(x, quat, v, W, bodies, a, b, steps, h, problem, control, work)
+
     t0 = float(times[0])   # a call of no steps compiles the loop before the first frame's outputs
-    if nodes_only:
-        march_nodes(x, v, t0, t0, 0, control.dt, problem, work.f_node)
-    else:
-        loop(x, quat, v, W, bodies, t0, t0, 0, control.dt, problem, control, work)
+    march(t0, t0, 0, control.dt)
     on_frame(t0, state)
     for t_start, t_end in zip(times[:-1], times[1:]):
         n, h = whole_steps(t_start, t_end, control.dt)
@@ -113,10 +116,7 @@ def integrate_explicit(system: System, state: State, times: NDArray[np.float64],
             a = float(t_start) if k == 0 else float(t_start) + ends[k] * h
             b = float(t_end) if k == pieces - 1 else float(t_start) + ends[k + 1] * h
             steps = ends[k + 1] - ends[k]
-            if nodes_only:
-                done = march_nodes(x, v, a, b, steps, h, problem, work.f_node)
-            else:
-                done = loop(x, quat, v, W, bodies, a, b, steps, h, problem, control, work)
+            done = march(a, b, steps, h)
             stats.function_evaluations += done.evaluations
             state.friction_work += done.friction_work
             if rods:

@@ -286,18 +286,19 @@ def negative_curvature(system: System, q: Configuration, load: float) -> FloatAr
     largest = float(np.abs(S.diagonal()).max(initial=0.0))
     if largest == 0.0 or not np.isfinite(S.data).all():
         return None
-    shifted = (S + SEMIDEFINITE * largest * sp.identity(S.shape[0], format="csc")).tocsc()
+    shift = SEMIDEFINITE * largest
+    shifted = (S + shift * sp.identity(S.shape[0], format="csc")).tocsc()
     try:
         lu = spla.splu(shifted, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
                        options={"SymmetricMode": True})
     except RuntimeError:   # an exactly singular pivot: not a factorisation to judge by
         return None
     if not np.array_equal(lu.perm_r, lu.perm_c):   # pivoted off the diagonal: no inertia
-        return _lowest_mode(S, lu, SEMIDEFINITE * largest, largest)
+        return _lowest_mode(S, lu, shift, largest)
     pivots = lu.U.diagonal()
     j = int(np.argmin(pivots))
     if not pivots[j] < 0.0:
-        return _lowest_mode(S, lu, SEMIDEFINITE * largest, largest)
+        return _lowest_mode(S, lu, shift, largest)
     unit = np.zeros(S.shape[0])
     unit[j] = 1.0
     # S + d I = Pr^T L D L^T Pr with Pr[perm_r[k], k] = 1 (scipy's splu): x = z[perm_r]
