@@ -142,6 +142,10 @@ class LinearSolver:
         if static is not None and static.factorize(matrix):
             self.lu = static
             return
+        if _empty_line(matrix):
+            # SuperLU finds such a matrix singular too, but prints BLAS errors on the way (a
+            # static cable net: the threads' spin about their axes, along the global axes)
+            raise RuntimeError("Factor is exactly singular")
         csc = matrix.tocsc()
         try:
             self.lu = spla.splu(csc, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
@@ -173,6 +177,14 @@ class LinearSolver:
         except ValueError:  # not structurally symmetric
             self._static, self._unsymmetric = None, (matrix.indptr, matrix.indices)
         return self._static
+
+
+def _empty_line(matrix: sp.csr_matrix) -> bool:
+    """Whether some row or column of ``matrix`` holds only zeros (it is then singular)."""
+    nonzero = matrix.data != 0.0
+    rows = np.repeat(np.arange(matrix.shape[0]), np.diff(matrix.indptr))
+    return bool(len(np.unique(rows[nonzero])) < matrix.shape[0]
+                or len(np.unique(matrix.indices[nonzero])) < matrix.shape[1])
 
 
 class _DenseLU:
