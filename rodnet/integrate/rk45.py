@@ -25,7 +25,9 @@ def integrate_rk45(system: System, state: State, times: NDArray[np.float64], rto
                    first_step: float | None = None, stats: StepStats | None = None,
                    breaks: NDArray[np.float64] | None = None) -> StepStats:
     """Integrate with RK45 (relative tolerance ``rtol``; absolute tolerance ``rtol`` times 1 mm
-    and 1 mm/s) and hand the interpolated state at every frame time to ``on_frame``.
+    and 1 mm/s) and hand the interpolated state at every frame time to ``on_frame``. The
+    solver's unknowns are the nodes' displacements from their start and their velocities, so
+    that its relative tolerance, and the run, do not depend on where the origin lies.
 
     The solver is started afresh at every time in ``breaks`` (where a load switches on or off
     or its table jumps), so no step reaches across a jump: a step ending at a break sees the
@@ -47,14 +49,15 @@ def integrate_rk45(system: System, state: State, times: NDArray[np.float64], rto
     t0, t_end = float(times[0]), float(times[-1])
     inner = [float(b) for b in (breaks if breaks is not None else ()) if t0 < b < t_end]
     bounds = [t0, *sorted(set(inner)), t_end]
-    y = np.concatenate([np.ravel(state.q.x), np.ravel(state.v)]).astype(float)
+    x0 = np.array(state.q.x, dtype=float)
+    y = np.concatenate([np.zeros(3 * n), np.ravel(state.v)]).astype(float)
     on_frame(t0, state)
     next_frame = 1
     for start, stop in zip(bounds[:-1], bounds[1:]):
         before_stop = float(np.nextafter(stop, start))   # the loads' left limit at the break
 
         def rhs(t: float, y: NDArray[np.float64]) -> NDArray[np.float64]:
-            x, v = y[:3 * n].reshape(n, 3), y[3 * n:].reshape(n, 3)
+            x, v = x0 + y[:3 * n].reshape(n, 3), y[3 * n:].reshape(n, 3)
             forces(min(t, before_stop), x, no_rotation, v, spin, problem, work)
             return np.concatenate([y[3 * n:], (work.f_node * inv_mass).ravel()])
 
@@ -68,7 +71,7 @@ def integrate_rk45(system: System, state: State, times: NDArray[np.float64], rto
             dense = solver.dense_output()
             while next_frame < len(times) and times[next_frame] <= solver.t + 1e-12:
                 at = dense(times[next_frame]) if times[next_frame] < solver.t else solver.y
-                state.q = Configuration(at[:3 * n].reshape(n, 3).copy())
+                state.q = Configuration(x0 + at[:3 * n].reshape(n, 3))
                 state.v = at[3 * n:].copy()
                 on_frame(float(times[next_frame]), state)
                 next_frame += 1
