@@ -215,14 +215,14 @@ def _shape(spec: BodySpec, key: str, base_dir: Path) -> Shape:
 
 
 def _half_thickness(shape: Shape) -> float:
-    """Half the smallest extent of the body [m] (of its bounding box for a mesh)."""
+    """Half the smallest extent of the body [m] (of its oriented bounding box for a mesh)."""
     if isinstance(shape, Box):
         return min(shape.half_extents)
     if isinstance(shape, Cylinder):
         return min(shape.radius, 0.5 * shape.length)
     if isinstance(shape, Sphere):
         return shape.radius
-    return 0.5 * float(np.ptp(shape.bounds, axis=0).min())
+    return 0.5 * shape.thinnest_extent()
 
 
 def _inertia(spec: BodySpec, shape: Shape, mass: float) -> FloatArray:

@@ -80,6 +80,14 @@ class TriangleMesh:
     def bounds(self) -> FloatArray:
         return np.stack([self.vertices.min(axis=0), self.vertices.max(axis=0)])
 
+    def thinnest_extent(self) -> float:
+        """The smallest edge of the mesh's oriented bounding box [m] (trimesh's minimum-volume
+        box): a plate's thickness however the file turns it."""
+        import trimesh
+
+        mesh = trimesh.Trimesh(self.vertices, self.faces, process=False)
+        return float(np.min(mesh.bounding_box_oriented.primitive.extents))
+
     def query(self, points: FloatArray, max_distance: float = np.inf) -> SurfaceQuery:
         """(G9)-(G10) for ``points`` (P, 3) in the body frame.
 

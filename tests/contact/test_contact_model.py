@@ -322,3 +322,25 @@ def test_travel_limit_stops_a_fast_rod_at_a_thin_plate(integrator: str) -> None:
     assert (r.arrays["velocities"][-1, :, 2] < 0).all()   # bounced back
     limit = prepare(scene_from_toml(text)).system.contact.bodies.travel_limit[0]
     assert r.summary["integrator"]["dt_min"] <= limit / 10.0 * 1.0001
+
+
+def test_travel_limit_of_a_plate_turned_inside_its_mesh_file(tmp_path: Path) -> None:
+    """The 2 mm plate written to its mesh file already turned by 45 degrees: the travel limit
+    takes its thickness from the mesh's oriented bounding box, so it is the box plate's, and
+    backward Euler's rod stays in front of it (with the file's axis-aligned box, 0.35 m thick,
+    the rod ended 64 mm behind the plate, the run ok: outside check)."""
+    plate = trimesh.creation.box(extents=[0.5, 0.5, 0.002])
+    plate.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 4, [0.0, 1.0, 0.0]))
+    plate.export(tmp_path / "plate.stl")
+    text = PLATE_SHOT.format(integrator="backward-euler").replace(
+        'shape = "box"\nsize = [0.5, 0.5, 0.002]\nposition = [0.0, 0.0, 0.006]',
+        f'shape = "mesh"\nfile = "{tmp_path / "plate.stl"}"\nposition = [0.025, 0.0, 0.06]')
+    assert 'shape = "mesh"' in text
+    r = run_ok(text.replace("duration = 0.004", "duration = 0.008"))   # the rod turns as it hits
+    normal = np.array([np.sin(np.pi / 4), 0.0, np.cos(np.pi / 4)])   # the plate's
+    height = (r.arrays["positions"] - [0.025, 0.0, 0.06]) @ normal
+    assert height.max() < -0.001                           # never reached the near face
+    boxed = PLATE_SHOT.format(integrator="backward-euler")
+    limits = [prepare(scene_from_toml(t)).system.contact.bodies.travel_limit[0]
+              for t in (text, boxed)]
+    assert limits[0] == pytest.approx(limits[1], rel=1e-4)
