@@ -324,7 +324,9 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
         'for "mesh".'),
     "bodies.file": (
         "", 'shape = "mesh" only, and required there: any format trimesh reads (STL, OBJ, PLY, '
-        "GLB ...), relative to the scene file. The mesh must be watertight and consistently "
+        "GLB ..., told by the file's extension), relative to the scene file; its coordinates are "
+        "metres (there is no unit key: scale a file drawn in millimetres first). The mesh must be "
+        "watertight and consistently "
         "oriented (checked before the run; inward-facing meshes are flipped); it is translated "
         "so that its centre of volume is the body origin."),
     "bodies.mass": (

@@ -159,6 +159,10 @@ def _check_closed(faces: IntArray, n_vertices: int, name: str) -> None:
                          "edges; inside/outside and mass properties need a closed surface")
 
 
+MESH_FORMATS = ".stl, .obj, .ply, .off, .glb, .gltf and other formats of trimesh and meshio"
+"""The mesh files a body may name, as error messages list them."""
+
+
 def load_mesh(path: str | Path, centre: bool = True) -> tuple[TriangleMesh, FloatArray]:
     """Read a triangle mesh with trimesh (STL, OBJ, PLY, GLB/GLTF, OFF ...).
 
@@ -178,8 +182,15 @@ def load_mesh(path: str | Path, centre: bool = True) -> tuple[TriangleMesh, Floa
     import trimesh
 
     path = Path(path)
+    if path.is_dir():
+        raise SceneError("file", str(path), "is a directory, not a mesh file")
     if not path.is_file():
-        raise SceneError("file", str(path), "no such file")
+        raise SceneError("file", str(path), f"no such file (looked for {path.resolve()})")
+    suffix = "".join(path.suffixes[-2:]).lower().lstrip(".")
+    if not ({suffix, path.suffix.lower().lstrip(".")} & trimesh.available_formats()):
+        told = (f"has the extension {path.suffix!r}, which is no mesh format trimesh reads"
+                if path.suffix else "has no extension to tell its format by")
+        raise SceneError("file", str(path), f"{told} (allowed: {MESH_FORMATS})")
     try:
         loaded = trimesh.load(path, force="mesh", process=True)
     except Exception as exc:  # trimesh raises many kinds for unreadable files

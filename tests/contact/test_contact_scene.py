@@ -98,6 +98,16 @@ def test_mesh_file_problems_are_caught_before_the_run(tmp_path: Path) -> None:
     with pytest.raises(SceneError, match="no such file") as info:
         prepare(load_scene(mesh_scene(tmp_path, "nope.stl")))
     assert info.value.key == "bodies[0].file"
+    assert str(tmp_path.resolve() / "nope.stl") in str(info.value)   # where it looked
+    # a folder, a file without extension, a file of another format: what is allowed
+    (tmp_path / "hull.stl").mkdir()
+    with pytest.raises(SceneError, match="is a directory"):
+        prepare(load_scene(mesh_scene(tmp_path, "hull.stl")))
+    for name in ("hull", "hull.csv"):
+        (tmp_path / name).write_text("1, 2, 3\n")
+        with pytest.raises(SceneError, match=r"allowed: \.stl, \.obj, \.ply") as info:
+            prepare(load_scene(mesh_scene(tmp_path, name)))
+        assert info.value.key == "bodies[0].file"
     # unreadable
     (tmp_path / "junk.stl").write_text("this is not a mesh\n")
     with pytest.raises(SceneError) as info:
