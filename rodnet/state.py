@@ -128,12 +128,17 @@ class State:
         The rigid bodies (None in a scene without bodies).
     friction_work : float
         Work dissipated by friction since the start [J].
+    applied_to_bodies : tuple of two (B, 3) float, or None
+        The force [N] and moment about the centre of mass [N m] the threads applied to every
+        body in the explicit loop's last step (its friction (E2) is not the regularised law
+        at the state); None: the frame computes them from the state.
     """
 
     q: Configuration
     v: FloatArray
     bodies: BodyMotion | None = None
     friction_work: float = 0.0
+    applied_to_bodies: tuple[FloatArray, FloatArray] | None = None
 
     @property
     def velocities(self) -> FloatArray:

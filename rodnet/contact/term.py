@@ -187,16 +187,18 @@ class ContactTerm:
     # --- output --------------------------------------------------------------------------
 
     def frame_arrays(self, x: FloatArray, v: FloatArray, motion: BodyMotion,
-                     friction_work: float) -> dict[str, Any]:
+                     friction_work: float,
+                     applied: tuple[FloatArray, FloatArray] | None = None) -> dict[str, Any]:
         """What a saved frame holds of contact: ``contact_force`` [N] (sum of the magnitudes of
         the point forces), ``contact_count``, ``friction_work`` [J] so far, and per body (B, 3)
-        ``body_force`` [N], ``body_moment`` [N m] (about the centre of mass),
-        ``body_positions``, ``body_velocities``, ``body_angular_velocities`` (world axes) and
-        ``body_rotations`` (B, 4)."""
+        ``body_force`` [N], ``body_moment`` [N m] (about the centre of mass; ``applied``, the
+        explicit loop's last step's, where given), ``body_positions``, ``body_velocities``,
+        ``body_angular_velocities`` (world axes) and ``body_rotations`` (B, 4)."""
         state = contact_state(self.bodies, motion, x, v)
+        force, moment = (state.body_force, state.body_moment) if applied is None else applied
         return {"contact_force": state.total_force, "contact_count": state.count,
-                "friction_work": friction_work, "body_force": state.body_force,
-                "body_moment": state.body_moment, "body_positions": np.array(motion.position),
+                "friction_work": friction_work, "body_force": force,
+                "body_moment": moment, "body_positions": np.array(motion.position),
                 "body_rotations": np.array(motion.quaternion),
                 "body_velocities": np.array(motion.velocity),
                 "body_angular_velocities": np.array(motion.omega)}

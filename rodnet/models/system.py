@@ -491,7 +491,7 @@ class ThreadSystem:
             frame["contact_energy"] = energy["contact"]
         if self.contact is not None and state.bodies is not None:
             frame.update(self.contact.frame_arrays(state.q.x, state.velocities, state.bodies,
-                                                   state.friction_work))
+                                                   state.friction_work, state.applied_to_bodies))
         return frame
 
     def support_reactions(self, q: Configuration, v: FloatArray, t: float, load_factor: float,
