@@ -445,8 +445,8 @@ written `[x, y, z]`. "required" keys have no default; "not set" means the key is
 absent unless given. A scene needs a `[net]` or at least one `[[rods]]`, and a `[[materials]]`
 entry for every material they name; the other sections may be left out.
 
-Equation numbers (S1)-(S10) refer to
-[elements/spring/FORMULATION.md](../elements/spring/FORMULATION.md), (C1)-(C38) to
+Equation numbers (S1)-(S16) refer to
+[elements/spring/FORMULATION.md](../elements/spring/FORMULATION.md), (C1)-(C55) to
 [elements/cosserat/FORMULATION.md](../elements/cosserat/FORMULATION.md), (N1)-(N3), (F2) and
 (B2) to [elements/contact/FORMULATION.md](../elements/contact/FORMULATION.md). "Cosserat rods" below
 means `model.type = "cosserat"` with `bending` or `torsion` on; "cable threads" means
