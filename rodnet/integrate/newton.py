@@ -144,7 +144,7 @@ class LinearSolver:
             return
         if _empty_line(matrix):
             # SuperLU finds such a matrix singular too, but prints BLAS errors on the way (a
-            # static cable net: the threads' spin about their axes, along the global axes)
+            # static net lying in a coordinate plane: its nodes held by slack threads only)
             raise RuntimeError("Factor is exactly singular")
         csc = matrix.tocsc()
         try:

@@ -1122,9 +1122,9 @@ vtk = false
 
 def _cable_net_hung_by_its_corner_knots(tmp_path: Path, name: str, normal: str,
                                         gravity: str) -> Path:
-    """An 11 x 11 net of Cosserat cable threads (no bending or torsion: every thread spins
-    freely about its axis) with the normal ``normal``, pinned at its corner knots, statically
-    under ``gravity``; returns the output directory."""
+    """An 11 x 11 net of Cosserat cable threads (no bending or torsion: the cable model, three
+    unknowns per node) at its rest length, with the normal ``normal``, pinned at its corner
+    knots, statically under ``gravity``; returns the output directory."""
     scene = tmp_path / f"{name}.toml"
     scene.write_text(CABLE_NET.format(normal=normal, gravity=gravity) + "\n".join(
         f'[[supports]]\nnode = "net:knot:{k}"\nfix = "pin"' for k in (0, 10, 110, 120)))
@@ -1138,11 +1138,12 @@ def test_a_cable_net_sags_the_same_flat_and_tilted(tmp_path: Path, capfd,
     """The net lying in the x-y plane under gravity along -z, and the same net and gravity
     turned together (normal and gravity along (1, 1, 1)), sag alike: the same largest tension
     and sag along gravity; the supports carry the weight. Flat, Newton's matrices have empty
-    rows (the free spins are about the global axes), which SuperLU found singular while printing
-    BLAS errors ("On entry to DTRSV parameter number 6 had an illegal value"); they are now
-    found singular before it. Tilted, the hundreds of free spins share one eigenvalue away from
-    the axes, where the stability check's Lanczos search took 69,000 restarts (7 s per check);
-    it now stops after ``LOWEST_MODE_RESTARTS`` with the pairs it has."""
+    rows (nodes that only slack threads hold, and the threads lie along the axes), which
+    SuperLU found singular while printing BLAS errors ("On entry to DTRSV parameter number 6 had
+    an illegal value"); they are now found singular before it. Tilted, those hundreds of free
+    directions share one eigenvalue away from the axes, where the stability check's Lanczos
+    search took 69,000 restarts (7 s per check); it now stops after ``LOWEST_MODE_RESTARTS``
+    with the pairs it has."""
     import rodnet.integrate.static as static
 
     solves = []
