@@ -53,7 +53,8 @@ def cable_tangents(x_a: FloatArray, x_b: FloatArray, v_a: FloatArray, v_b: Float
     """
     d = x_b - x_a
     length = np.sqrt(np.einsum("ij,ij->i", d, d))
-    t = d / length[:, None]
+    with np.errstate(invalid="ignore"):   # a segment of no length (a trial point of Newton's
+        t = d / length[:, None]           # shifted steps) has no direction: NaN, rejected there
     dv = v_b - v_a
     strain = length / rest_length - 1.0
     if step is None:
