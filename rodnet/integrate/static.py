@@ -340,8 +340,8 @@ modes (free twists) and its softest ones (a column's two buckling planes)."""
 LOWEST_MODE_RESTARTS = 30
 """Restarts of the Lanczos iteration of :func:`_lowest_mode` before it stops with the pairs it
 has: its searches take two or three (31 - 45 solves) on rods and nets, but hundreds of free
-modes at one eigenvalue (the nodes of a tilted net of cable threads that slack threads hold) took it
-69,000 restarts, 7 s for each check of an 11 x 11 net."""
+modes at one eigenvalue (the nodes that only slack threads hold in a tilted net of cable threads)
+took it 69,000 restarts, 7 s for each check of an 11 x 11 net."""
 
 NEGATIVE = 1e-15
 """An eigenvalue of the tangent's symmetric part below ``-NEGATIVE`` times its largest diagonal
