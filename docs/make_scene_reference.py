@@ -61,8 +61,10 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
         "`dt^2 |a1 - a0| / 12`, backward Euler `dt |v1 - v0| / 2`). A step above it is rejected; "
         "every step is resized by `0.9 (tolerance / error)^(1/(p+1))` (`p` the order), within "
         "0.2 to 2. Not set: 3e-5 times the size of the structure (the largest distance "
-        "between two of its nodes at rest): 0.9 mm on the reference net, 30 um on a 1 m thread. Not used by `explicit`, "
-        "`rk45` or fixed steps."),
+        "between two of its nodes at rest): 0.9 mm on the reference net, 30 um on a 1 m thread; "
+        "of the structure's size, not of the motion, so vibrations much smaller than the "
+        "structure need a smaller value (a fraction of their amplitude) or `dt_max` (rod model, "
+        "Limits). Not used by `explicit`, `rk45` or fixed steps."),
     "simulation.integrator": (
         "", 'Not set: "explicit" for `model.type = "lumped"` and `"kirchhoff"`, "bdf2" '
         'otherwise (Kirchhoff threads run "explicit" or "rk45" only). '
