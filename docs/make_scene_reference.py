@@ -49,7 +49,8 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
         "limit (S10) of the scene, computed once before the run; `false` uses `dt`. Implicit "
         "integrators: `true` resizes every step from a local error estimate (see "
         "`error_tolerance`, which has a default) and halves a step whose Newton solve fails "
-        "(200 iterations without convergence, or no progress in 25), up to `dt_max`; `false` "
+        "(200 iterations without convergence, no progress in 25, or its residual standing for "
+        "50), up to `dt_max`; `false` "
         "keeps `dt`, Newton runs on while it makes progress (up to 1,000 iterations), and a step "
         "whose Newton solve fails ends the run. Not "
         "used by `rk45`, which controls its step with `rtol`."),

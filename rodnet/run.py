@@ -312,7 +312,8 @@ def _newton(p: Prepared) -> NewtonOptions:
     options = NewtonOptions(rtol=min(sim.rtol, 1e-6) * 1e-2,
                             reuse_factorization=sim.reuse_factorization)
     if sim.type == "dynamic" and not sim.adaptive:
-        return dataclasses.replace(options, max_iterations=FIXED_STEP_ITERATIONS)
+        return dataclasses.replace(options, max_iterations=FIXED_STEP_ITERATIONS,
+                                   standing_iterations=None)
     if _rotations_creep(p):
         return dataclasses.replace(options, progress_iterations=NEWTON_TARGET)
     return options
