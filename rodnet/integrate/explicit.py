@@ -131,7 +131,7 @@ def integrate_explicit(system: System, state: State, times: NDArray[np.float64],
                 raise SimulationFailed(_failure(done, h, control, problem))
             if k < pieces - 1 and on_progress is not None:   # progress, and a stop, between
                 on_progress(b, h, stats)
-        if state.bodies is not None and n:
+        if state.bodies is not None:   # every frame interval takes at least one step
             state.applied_to_bodies = (work.contact.body_force.copy(),
                                        work.contact.body_moment.copy())
         on_frame(float(t_end), state)
