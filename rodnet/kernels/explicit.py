@@ -9,7 +9,9 @@ bodies and the bodies' own step (``elements/contact/FORMULATION.md`` (E1)-(E5), 
 step evaluates the forces at the start of the step, then
 
     v1 = v0 + h m^-1 f,   x1 = x0 + h v1                                        (S9), (C46)
-    W1 = W0 + h J^-1 [mu - W0 x (J W0)],   q1 = q0 o exp(h W1)                  (C47)
+    P = J W0 + h mu,   (q1, P1) = free rotation of the node for h,   W1 = J^-1 P1     (C47)
+
+(the free rotation split into turns about the three body axes, (C47a))
 
 and moves the free bodies. The step length is decided by :class:`StepControl`:
 
@@ -129,7 +131,8 @@ class StepControl(NamedTuple):
 
 
 class Scratch(NamedTuple):
-    """Work arrays, allocated once per run: ``f_node`` (N, 3), ``m_node`` (R, 3), the rod
+    """Work arrays, allocated once per run: ``f_node`` (N, 3), ``m_node`` (R, 3) (the moments,
+    then in the update the body momenta after the kick), the rod
     elements' ``force`` (E, 12) and ``monitor`` (E, 2),
     the bodies' ``body_work`` (9, 3) and the contact's :class:`ContactScratch`."""
 
@@ -259,24 +262,112 @@ def _turned(aw, ax, ay, az, bw, bx, by, bz):  # pragma: no cover - compiled
     return qw * inv, qx * inv, qy * inv, qz * inv, math.isfinite(norm) & (norm > 0.0)
 
 
+@numba.njit(inline="always")
+def _half_series(theta):  # pragma: no cover - compiled
+    """``cos(theta / 2)``, ``sin(theta / 2)`` by their series, to round-off for ``|theta| <=
+    0.05`` (the next terms are below 1e-20)."""
+    f = 0.5 * theta
+    p = f * f
+    c = 1.0 + p * (-0.5 + p * (1.0 / 24.0 + p * (-1.0 / 720.0 + p / 40320.0)))
+    s = f * (1.0 + p * (-1.0 / 6.0 + p * (1.0 / 120.0 + p * (-1.0 / 5040.0 + p / 362880.0))))
+    return c, s
+
+
+@numba.njit(inline="always")
+def _half_trig(theta):  # pragma: no cover - compiled
+    """``cos(theta / 2)``, ``sin(theta / 2)``."""
+    return math.cos(0.5 * theta), math.sin(0.5 * theta)
+
+
+@numba.njit(inline="always")
+def _axis_flow(axis, tau, qw, qx, qy, qz, p0, p1, p2, j0, j1, j2,
+               half):  # pragma: no cover - compiled
+    """The exact flow over ``tau`` [s] of the free rotation whose kinetic energy is the
+    ``axis`` term ``P_a^2 / (2 J_a)`` alone (C47a): the node turns about its body axis ``a`` at
+    ``W_a = P_a / J_a``, ``q <- q o exp(tau W_a e_a)``, and its body-frame angular momentum
+    ``P`` turns the other way, ``P <- exp(-tau W_a e_a) P`` (spatial momentum unchanged).
+    ``j`` are the inverse inertias; ``half`` gives the cosine and sine of half an angle."""
+    if axis == 0:
+        c, s = half(tau * p0 * j0)
+        qw, qx, qy, qz = qw * c - qx * s, qw * s + qx * c, qy * c + qz * s, qz * c - qy * s
+        cc, ss = 1.0 - 2.0 * s * s, 2.0 * s * c
+        p1, p2 = cc * p1 + ss * p2, cc * p2 - ss * p1
+    elif axis == 1:
+        c, s = half(tau * p1 * j1)
+        qw, qx, qy, qz = qw * c - qy * s, qx * c - qz * s, qw * s + qy * c, qx * s + qz * c
+        cc, ss = 1.0 - 2.0 * s * s, 2.0 * s * c
+        p2, p0 = cc * p2 + ss * p0, cc * p0 - ss * p2
+    else:
+        c, s = half(tau * p2 * j2)
+        qw, qx, qy, qz = qw * c - qz * s, qx * c + qy * s, qy * c - qx * s, qw * s + qz * c
+        cc, ss = 1.0 - 2.0 * s * s, 2.0 * s * c
+        p0, p1 = cc * p0 + ss * p1, cc * p1 - ss * p0
+    return qw, qx, qy, qz, p0, p1, p2
+
+
+@numba.njit(inline="always")
+def _free_rotation(h, qw, qx, qy, qz, p0, p1, p2, j0, j1, j2,
+                   half):  # pragma: no cover - compiled
+    """The free rotation of a node over ``h`` [s] from ``q``, body momentum ``P``, by the
+    symmetric splitting of its kinetic energy into the three axis terms (C47a): axes 0, 1 for
+    ``h / 2``, axis 2 for ``h``, axes 1, 0 for ``h / 2``; ``q`` normalised, and whether it
+    is finite."""
+    g = 0.5 * h
+    qw, qx, qy, qz, p0, p1, p2 = _axis_flow(0, g, qw, qx, qy, qz, p0, p1, p2, j0, j1, j2, half)
+    qw, qx, qy, qz, p0, p1, p2 = _axis_flow(1, g, qw, qx, qy, qz, p0, p1, p2, j0, j1, j2, half)
+    qw, qx, qy, qz, p0, p1, p2 = _axis_flow(2, h, qw, qx, qy, qz, p0, p1, p2, j0, j1, j2, half)
+    qw, qx, qy, qz, p0, p1, p2 = _axis_flow(1, g, qw, qx, qy, qz, p0, p1, p2, j0, j1, j2, half)
+    qw, qx, qy, qz, p0, p1, p2 = _axis_flow(0, g, qw, qx, qy, qz, p0, p1, p2, j0, j1, j2, half)
+    norm = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
+    inv = 1.0 / norm
+    ok = math.isfinite(norm) & (norm > 0.0)
+    return qw * inv, qx * inv, qy * inv, qz * inv, p0, p1, p2, ok
+
+
+@numba.njit(inline="always")
+def _series_rotation(h, p0, p1, p2, j0, j1, j2):  # pragma: no cover - compiled
+    """Whether the free rotation of a node with body momentum ``P`` and inverse inertias ``j``
+    can take the series of :func:`_half_series` (every axis turns by at most 0.05 rad in
+    ``h``: ``h |P| max j`` bounds each axis' angle, and the splitting keeps ``|P|``) and has no
+    supported axis (some, not all, ``j`` zero: such a node turns without gyroscopic coupling,
+    left to :func:`_turn_far`)."""
+    jm = max(j0, max(j1, j2))
+    reach = h * h * (p0 * p0 + p1 * p1 + p2 * p2) * jm * jm
+    held = (j0 == 0.0) | (j1 == 0.0) | (j2 == 0.0)
+    all_held = (j0 == 0.0) & (j1 == 0.0) & (j2 == 0.0)
+    return (reach < 2.5e-3) & ((not held) | all_held)
+
+
 @numba.njit(cache=True, error_model="numpy")
-def _turn_far(quat, W, h):  # pragma: no cover - compiled
-    """``q <- q o exp(h W)`` for the rotation nodes turned by at least 0.05 rad in the step
-    (``W`` already updated), by ``cos`` and ``sin``; returns how many became non-finite."""
+def _turn_far(quat, W, P, inverse, h):  # pragma: no cover - compiled
+    """The rotation nodes that :func:`update_range` left (see :func:`_series_rotation`), from
+    their body momenta after the kick ``P`` (R, 3): a node with a supported axis by
+    ``W1 = J^-1 P``, ``q1 = q0 o exp(h W1)``, the others by the splitting (C47a) with ``cos``
+    and ``sin``; returns how many became non-finite."""
     bad = 0
     for r in range(W.shape[0]):
-        d0, d1, d2 = h * W[r, 0], h * W[r, 1], h * W[r, 2]
-        a2 = d0 * d0 + d1 * d1 + d2 * d2
-        if not a2 < 2.5e-3:
-            angle = math.sqrt(a2)
+        p0, p1, p2 = P[r, 0], P[r, 1], P[r, 2]
+        j0, j1, j2 = inverse[r, 0], inverse[r, 1], inverse[r, 2]
+        if _series_rotation(h, p0, p1, p2, j0, j1, j2):
+            continue
+        held = (j0 == 0.0) | (j1 == 0.0) | (j2 == 0.0)
+        aw, ax, ay, az = quat[r, 0], quat[r, 1], quat[r, 2], quat[r, 3]
+        if held:
+            w0, w1, w2 = p0 * j0, p1 * j1, p2 * j2
+            d0, d1, d2 = h * w0, h * w1, h * w2
+            angle = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
             c = math.cos(0.5 * angle)
-            sn = math.sin(0.5 * angle) / angle
-            qw, qx, qy, qz, ok = _turned(quat[r, 0], quat[r, 1], quat[r, 2], quat[r, 3], c,
-                                         sn * d0, sn * d1, sn * d2)
-            if ok:
-                quat[r, 0], quat[r, 1], quat[r, 2], quat[r, 3] = qw, qx, qy, qz
-            else:
-                bad += 1
+            sn = 0.5 if angle == 0.0 else math.sin(0.5 * angle) / angle
+            qw, qx, qy, qz, ok = _turned(aw, ax, ay, az, c, sn * d0, sn * d1, sn * d2)
+        else:
+            qw, qx, qy, qz, p0, p1, p2, ok = _free_rotation(h, aw, ax, ay, az, p0, p1, p2,
+                                                            j0, j1, j2, _half_trig)
+            w0, w1, w2 = p0 * j0, p1 * j1, p2 * j2
+        if ok:
+            quat[r, 0], quat[r, 1], quat[r, 2], quat[r, 3] = qw, qx, qy, qz
+            W[r, 0], W[r, 1], W[r, 2] = w0, w1, w2
+        else:
+            bad += 1
     return bad
 
 
@@ -287,9 +378,10 @@ def update_range(x, quat, v, W, f_node, m_node, inv_mass, inertia, inv_inertia,
     ``v``, ``f_node``, ``inv_mass``) and rotation nodes (``quat``, ``W``, ``m_node``,
     ``inertia``, ``inv_inertia``) given (a block: these arrays' rows, as views, so that the loops
     start at 0 and the compiler drops the checks for negative indices and vectorises the
-    rotations); returns how many nodes became non-finite and how many rotation nodes turned too
-    far for the series of ``exp`` (left for :func:`_turn_far`). ``inv_mass`` is :class:`Nodes`'
-    field, ``inertia`` and ``inv_inertia`` :class:`Rotations`'."""
+    rotations); ``m_node`` is left holding the rotation nodes' body momenta after the kick.
+    Returns how many nodes became non-finite and how many rotation nodes were left for
+    :func:`_turn_far`. ``inv_mass`` is :class:`Nodes`' field, ``inertia`` and
+    ``inv_inertia`` :class:`Rotations`'."""
     bad = 0
     for i in range(x.shape[0]):
         for k in range(3):
@@ -298,31 +390,31 @@ def update_range(x, quat, v, W, f_node, m_node, inv_mass, inertia, inv_inertia,
         if not (math.isfinite(x[i, 0]) and math.isfinite(x[i, 1]) and math.isfinite(x[i, 2])):
             bad += 1
     # the rotations in a loop without branches or calls, which the compiler vectorises (flat
-    # arrays, fixed strides): every node by the series of exp below 0.05 rad; a node turned
-    # further in one step keeps its quaternion there and is redone by _turn_far
+    # arrays, fixed strides): the kick P = J W0 + h mu, then the free rotation (C47a) by the
+    # series of cos and sin; a node that turns further, or has a supported axis, keeps its
+    # state here and is redone by _turn_far from its kicked momentum (left in m_node)
     Wf, Q, M = W.reshape(-1), quat.reshape(-1), m_node.reshape(-1)
     J, Ji = inertia.reshape(-1), inv_inertia.reshape(-1)
     far = 0
     for r in range(W.shape[0]):
         a, b = 3 * r, 4 * r
-        w0, w1, w2 = Wf[a], Wf[a + 1], Wf[a + 2]
-        j0, j1, j2 = J[a] * w0, J[a + 1] * w1, J[a + 2] * w2
-        n0 = w0 + h * (M[a] - (w1 * j2 - w2 * j1)) * Ji[a]
-        n1 = w1 + h * (M[a + 1] - (w2 * j0 - w0 * j2)) * Ji[a + 1]
-        n2 = w2 + h * (M[a + 2] - (w0 * j1 - w1 * j0)) * Ji[a + 2]
-        Wf[a], Wf[a + 1], Wf[a + 2] = n0, n1, n2
-        d0, d1, d2 = h * n0, h * n1, h * n2
-        a2 = d0 * d0 + d1 * d1 + d2 * d2
-        c = 1.0 + a2 * (-1.0 / 8.0 + a2 * (1.0 / 384.0 + a2 * (-1.0 / 46080.0 + a2 / 10321920.0)))
-        sn = 0.5 + a2 * (-1.0 / 48.0 + a2 * (1.0 / 3840.0 + a2 * (-1.0 / 645120.0 + a2 / 185794560.0)))
+        p0 = J[a] * Wf[a] + h * M[a]
+        p1 = J[a + 1] * Wf[a + 1] + h * M[a + 1]
+        p2 = J[a + 2] * Wf[a + 2] + h * M[a + 2]
+        M[a], M[a + 1], M[a + 2] = p0, p1, p2
+        j0, j1, j2 = Ji[a], Ji[a + 1], Ji[a + 2]
         aw, ax, ay, az = Q[b], Q[b + 1], Q[b + 2], Q[b + 3]
-        qw, qx, qy, qz, ok = _turned(aw, ax, ay, az, c, sn * d0, sn * d1, sn * d2)
-        near = a2 < 2.5e-3
+        qw, qx, qy, qz, n0, n1, n2, ok = _free_rotation(h, aw, ax, ay, az, p0, p1, p2,
+                                                        j0, j1, j2, _half_series)
+        near = _series_rotation(h, p0, p1, p2, j0, j1, j2)
         keep = near & ok   # selected, not branched on (a load in a branch stops vectorising)
         Q[b] = qw if keep else aw
         Q[b + 1] = qx if keep else ax
         Q[b + 2] = qy if keep else ay
         Q[b + 3] = qz if keep else az
+        Wf[a] = n0 * j0 if keep else Wf[a]
+        Wf[a + 1] = n1 * j1 if keep else Wf[a + 1]
+        Wf[a + 2] = n2 * j2 if keep else Wf[a + 2]
         far += int(not near)
         bad += int(near & (not ok))
     return bad, far
@@ -349,7 +441,7 @@ def _update(x, quat, v, W, f_node, m_node, nodes, rotations, h,
             bad += bad_b
             far += far_b
     if far:
-        bad += _turn_far(quat, W, h)
+        bad += _turn_far(quat, W, m_node, inv_inertia, h)
     return bad == 0
 
 

@@ -803,3 +803,61 @@ def test_a_polyline_rod_turned_with_the_scene_moves_turned(tmp_path: Path, steps
                                atol=1e-9 * np.abs(base["tension"]).max())
     np.testing.assert_allclose(turned["rotation_node_inertia"], base["rotation_node_inertia"],
                                rtol=1e-12)
+
+
+SPINNING_ROD = """
+[simulation]
+type = "dynamic"
+duration = 5.0
+integrator = "explicit"
+gravity = [0.0, 0.0, 0.0]
+
+[model]
+type = "cosserat"
+axial = "linear"
+
+[[materials]]
+name = "svq"
+density = 1.0
+youngs_modulus = 1.0
+diameter = 1.0
+axial_stiffness = 1.0e4
+shear_stiffness = 1.0e4
+bending_stiffness = 500.0
+torsional_stiffness = 500.0
+mass_per_length = 1.0
+rotary_inertia_per_length = 10.0
+
+[[rods]]
+name = "rod"
+material = "svq"
+points = [[-5.0, 0.0, 0.0], [5.0, 0.0, 0.0]]
+elements = 20
+angular_velocity = [10.0, 0.0, 2.0]
+
+[output]
+frame_interval = 0.05
+vtk = false
+picture = false
+plot = false
+"""
+"""A free rod (Simo and Vu-Quoc's section data) spinning about its axis and tumbling: no loads,
+no damping."""
+
+
+def test_explicit_rod_spinning_and_tumbling_keeps_momentum_and_energy(tmp_path: Path) -> None:
+    """The explicit scheme's free rotation of the sections (C47a) keeps the spatial angular
+    momentum of a free rod to round-off and its energy bounded; the update before it (the
+    gyroscopic moment explicit, ``W1 = W0 - h J^-1 W0 x J W0``) gained 1.1 % of the energy in
+    these 5 s and 77 % in 20 s, and the angular momentum drifted by 12 % (outside check)."""
+    r = run(scene_from_toml(SPINNING_ROD), tmp_path, progress=False)
+    assert r.status == "ok", r.message
+    a = r.arrays
+    m = a["node_mass"] if a["node_mass"].ndim == 1 else a["node_mass"][:, 0]
+    R = so3.quat_to_matrix(a["rotation_node_quaternions"].reshape(-1, 4)).reshape(
+        a["rotation_node_quaternions"].shape[:2] + (3, 3))
+    L = np.einsum("n,fni->fi", m, np.cross(a["positions"], a["velocities"])) + np.einsum(
+        "frij,frj->fi", R, a["rotation_node_inertia"][None] * a["rotation_node_spins"])
+    assert np.linalg.norm(L - L[0], axis=1).max() <= 1e-10 * np.linalg.norm(L[0])
+    energy = a["kinetic_energy"] + a["elastic_energy"]
+    assert np.abs(energy / energy[0] - 1.0).max() <= 1e-3
