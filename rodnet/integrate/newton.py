@@ -74,6 +74,12 @@ class NewtonOptions:
     answers the shorter turns, before the rotations left too long are cut; and a step whose
     rotations were cut is not taken as the watchdog's free step. False: rotations are only
     cut, and any full step may be the free one."""
+    restraint_reach: float | None = 0.5
+    """While the restrained nodes' largest turn is below this fraction of ``max_rotation``,
+    the restraint is loosened and the correction solved again (:func:`_restrained`); None:
+    never loosened (fixed steps, ``rodnet.run._newton``: near a solution a loosened
+    correction can walk along a spin valley where the potential falls while the residual
+    rises, and there a failed solve ends the run)."""
 
 
 @dataclass
@@ -546,13 +552,25 @@ def _direction(p: NewtonProblem, solver: LinearSolver, at: _Point, matrix: str,
         # downhill
         return _direction(p, solver, at, "convex", options)
     if restrain:
-        du = _restrained(p, solver, original, at.r, du)
+        du = _restrained(p, solver, original, at.r, du, options.restraint_reach)
     at.du = du
     at.step = du if p.shorten is None else p.shorten(du)
-    # the slope of |r|^2 / 2 along an exact Newton step is -|r|^2 (the step scales it)
-    at.slope = _dot(at.r, at.step) if at.potential or matrix == "convex" else \
-        -_dot(at.r, at.r) * _ratio(at.step, du)
+    at.slope = _slope(p, at, du, matrix)
     return True
+
+
+def _slope(p: NewtonProblem, at: _Point, du: FloatArray, matrix: str) -> float:
+    """The merit's slope along ``at.step``: ``r . step`` for the potential (its gradient is
+    ``r``); for ``|r|^2 / 2``, ``r . (J step)``, which along an exact Newton step is ``-|r|^2``
+    (the cut step scales it), and along another (the convexified matrix's) takes the exact
+    matrix ``J``. (``r . step`` there mixed the units of force and force squared: a scene in
+    force units 1e5 times smaller failed its line search where the original converged.)"""
+    if at.potential:
+        return _dot(at.r, at.step)
+    if matrix == "exact":
+        return -_dot(at.r, at.r) * _ratio(at.step, du)
+    _, J = p.evaluate(at.u, "exact")
+    return _dot(at.r, _sparse(J) @ at.step) if J is not None else math.nan
 
 
 def _next(p: NewtonProblem, solver: LinearSolver, here: _Point, options: NewtonOptions,
@@ -616,7 +634,7 @@ def _restrains(p: NewtonProblem, options: NewtonOptions) -> bool:
 
 
 def _restrained(p: NewtonProblem, solver: LinearSolver, S: IterationMatrix, r: FloatArray,
-                du: FloatArray) -> FloatArray:
+                du: FloatArray, reach_below: float | None = 0.5) -> FloatArray:
     """The correction solved again with the rotations it turns too far restrained: the
     diagonal of ``S`` at every DOF of a node that ``du`` turns by ``turn > max_rotation`` is
     raised by ``c (turn / max_rotation - 1) |S_ii|`` (``p.restraint``), a Levenberg-Marquardt
@@ -634,7 +652,7 @@ def _restrained(p: NewtonProblem, solver: LinearSolver, S: IterationMatrix, r: F
     of a crumpled thread turning together) is held far shorter, and repeating such steps
     creeps (0.3 % of the residual per iteration for a hundred iterations on the pinned
     reference net at 2 ms): while the restrained nodes' largest turn (``p.reach``) is below
-    :data:`RESTRAINT_REACH` of the cap, ``c`` is scaled by it and the system solved again,
+    ``reach_below`` of the cap (None: never), ``c`` is scaled by it and the system solved again,
     up to :data:`RESTRAINT_TRIES` times (the turn of such a mode scales as ``1 / c``). The
     factorisation left in ``solver`` is the last restrained one (used only by the polishing
     of a converged iterate, which needs a correction only near the solution, where nothing
@@ -653,16 +671,13 @@ def _restrained(p: NewtonProblem, solver: LinearSolver, S: IterationMatrix, r: F
         if not np.isfinite(restrained).all() or _dot(r, restrained) >= 0.0:
             return best
         best = restrained
-        reach = 1.0 if p.reach is None else p.reach(restrained, factor)
-        if reach >= RESTRAINT_REACH:
+        if p.reach is None or reach_below is None:
             return best
-        shift = shift * max(reach, RESTRAINT_REACH / 64.0)
+        reach = p.reach(restrained, factor)
+        if reach >= reach_below:
+            return best
+        shift = shift * max(reach, reach_below / 64.0)
     return best
-
-
-RESTRAINT_REACH = 0.5
-"""The restrained nodes' largest turn, as a fraction of the cap, below which the restraint is
-loosened (:func:`_restrained`)."""
 
 RESTRAINT_TRIES = 4
 """Restrained solves of one correction at most (the first and three loosened ones)."""

@@ -302,3 +302,69 @@ def test_explicit_step_counts_contact_springs_only_near_a_body() -> None:
     assert near.summary["steps"] > 1.5 * alone.summary["steps"]
     np.testing.assert_allclose(far.arrays["positions"][-1], alone.arrays["positions"][-1],
                                atol=1e-3)
+
+
+FORCE_UNIT_DROP = """
+[simulation]
+duration = 0.13
+gravity = [0.0, 0.0, -9.81]
+adaptive = false
+dt = 2e-4
+[model]
+type = "cosserat"
+bending = false
+torsion = false
+[[materials]]
+name = "kevlar"
+density = {density}
+youngs_modulus = {modulus}
+diameter = 0.002
+viscosity = {viscosity}
+[[rods]]
+name = "thread"
+material = "kevlar"
+points = [[-0.5, 0, 0.05], [0.5, 0, 0.05]]
+elements = 10
+[[masses]]
+node = "thread:start"
+mass = {mass}
+[[masses]]
+node = "thread:end"
+mass = {mass}
+[[bodies]]
+name = "block"
+shape = "box"
+size = [2.0, 2.0, 0.2]
+position = [0.0, 0.0, -0.1]
+fixed = true
+[contact]
+stiffness = {stiffness}
+damping = {damping}
+friction = 0.3
+[output]
+frame_interval = 0.01
+vtk = false
+picture = false
+plot = false
+"""
+"""A cable thread with end masses dropped 5 cm onto a box, BDF2 at fixed steps through the
+landing (outside check); every mass, modulus and contact coefficient times ``unit``."""
+
+
+def test_a_landing_is_solved_the_same_in_any_unit_of_force(tmp_path: Path) -> None:
+    """Forces 1e5 times smaller (every mass, modulus, viscosity and contact coefficient) divide
+    the discrete equations by 1e5 and change nothing else: the same steps, Newton iterations
+    and motion. The line search's slope on ``|r|^2 / 2`` along a convexified correction had the
+    units of force, not force squared, and this run failed at the landing ("no step along the
+    Newton correction reduces the residual 1.81e-05 N") while the original converged."""
+    runs = []
+    for unit in (1.0, 1e-5):
+        text = FORCE_UNIT_DROP.format(density=1440.0 * unit, modulus=7e10 * unit,
+                                      viscosity=2e5 * unit, mass=0.1 * unit,
+                                      stiffness=1e5 * unit, damping=50.0 * unit)
+        runs.append(run_ok(text, directory=str(tmp_path / f"unit{unit:g}")))
+    (a, b) = runs
+    assert a.summary["steps"] == b.summary["steps"] == 650
+    assert a.summary["newton_iterations"] == b.summary["newton_iterations"]
+    assert a.arrays["positions"][:, :, 2].min() < 0.001      # landed: within a radius (1 mm)
+    np.testing.assert_allclose(b.arrays["positions"], a.arrays["positions"], rtol=0.0, atol=1e-9)
