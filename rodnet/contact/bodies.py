@@ -260,9 +260,10 @@ def build_body_contact(scene: Scene, structure: Structure) -> BodyContact | None
     shapes = tuple(_shape(b, f"bodies[{i}]", base_dir) for i, b in enumerate(scene.bodies))
     poses = [euler_xyz_matrix(b.orientation_deg) for b in scene.bodies]
     spec = scene.contact if scene.contact is not None else ContactSpec()
-    law = ContactLaw(stiffness=spec.stiffness, damping=spec.damping, friction=spec.friction,
-                     smoothing=spec.smoothing, slip_velocity=spec.slip_velocity)
     radius = 0.5 * np.array([m.diameter for m in scene.materials])[structure.material]
+    law = ContactLaw(stiffness=spec.stiffness, damping=spec.damping, friction=spec.friction,
+                     smoothing=spec.smoothing_for(float(radius.min())),
+                     slip_velocity=spec.slip_velocity)
     travel = TRAVEL_FRACTION * (np.array([_half_thickness(s) for s in shapes])
                                 + float(radius.min()))
     mass = np.array([_mass(b, s) for b, s in zip(scene.bodies, shapes)])

@@ -368,3 +368,56 @@ def test_a_landing_is_solved_the_same_in_any_unit_of_force(tmp_path: Path) -> No
     assert a.summary["newton_iterations"] == b.summary["newton_iterations"]
     assert a.arrays["positions"][:, :, 2].min() < 0.001      # landed: within a radius (1 mm)
     np.testing.assert_allclose(b.arrays["positions"], a.arrays["positions"], rtol=0.0, atol=1e-9)
+
+
+THIN_THREAD_ON_A_BOX = """
+[simulation]
+duration = 0.0005
+gravity = [0.0, 0.0, -9810.0]
+[model]
+type = "lumped"
+[[materials]]
+name = "kevlar"
+density = 1440.0
+youngs_modulus = 7.0e10
+diameter = 2e-6
+viscosity = 200.0
+[[rods]]
+name = "thread"
+material = "kevlar"
+points = [[-0.0005, 0, 5e-5], [0.0005, 0, 5e-5]]
+elements = 10
+[[masses]]
+node = "thread:start"
+mass = 1e-10
+[[masses]]
+node = "thread:end"
+mass = 1e-10
+[[bodies]]
+name = "block"
+shape = "box"
+size = [0.002, 0.002, 0.0002]
+position = [0.0, 0.0, -0.0001]
+fixed = true
+[contact]
+stiffness = 100.0
+damping = 5e-5
+[output]
+frame_interval = 1e-5
+vtk = false
+picture = false
+plot = false
+"""
+"""A 1 mm thread of 2 um with 1e-10 kg end masses dropped 49 um onto a box (outside check: the
+scene of a 1 m thread with 0.1 kg masses scaled by 1e-3, gravity by 1e3)."""
+
+
+def test_a_thin_thread_rests_on_a_body_at_the_penalty_depth() -> None:
+    """The end masses come to rest ``m g / k`` (9.81e-9 m) deep in the box, as the scaled-up
+    twin does: the default smoothing is at most 1 % of the thread's radius. A fixed 1e-6 m (half
+    the thread's diameter) held them 0.80 um above the box, the blend's force
+    ``k (delta + s)^2 / (4 s)`` carrying their weight at ``delta = -0.80 um``."""
+    r = run_ok(THIN_THREAD_ON_A_BOX)
+    ends = [r.summary["nodes"]["thread:start"], r.summary["nodes"]["thread:end"]]
+    gap = r.arrays["positions"][-1, ends, 2] - 1e-6           # surface above the box's top
+    np.testing.assert_allclose(gap, -1e-10 * 9810.0 / 100.0, rtol=0.02)
