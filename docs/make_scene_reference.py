@@ -114,8 +114,9 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
         "mode limits the step to about 1e-7 s for a 1 mm thread. The largest factor is reported as "
         "`integrator.rotary_inertia_scale` in summary.json. Not used by other integrators or models."),
     "simulation.rtol": (
-        "-", "In (0, 1). `rk45`: relative tolerance of the nodes' displacements from their "
-        "start and of their velocities (so a run does not depend on where the origin lies); "
+        "-", "In (0, 1). `rk45`: relative tolerance of the nodes' displacements and "
+        "velocities relative to a frame moving with their initial mean velocity from their "
+        "start (so a run depends neither on where the origin lies nor on a uniform velocity); "
         "the absolute tolerance is `rtol` x 1e-3 (metres, m/s). Implicit integrators and static runs: "
         "Newton's residual tolerance is `min(rtol, 1e-6)` x 1e-2 times the force scale (the "
         "forces acting in the step, at least 1 % of the largest `EA`), plus 1e-10 N."),

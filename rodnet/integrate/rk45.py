@@ -26,8 +26,12 @@ def integrate_rk45(system: System, state: State, times: NDArray[np.float64], rto
                    breaks: NDArray[np.float64] | None = None) -> StepStats:
     """Integrate with RK45 (relative tolerance ``rtol``; absolute tolerance ``rtol`` times 1 mm
     and 1 mm/s) and hand the interpolated state at every frame time to ``on_frame``. The
-    solver's unknowns are the nodes' displacements from their start and their velocities, so
-    that its relative tolerance, and the run, do not depend on where the origin lies.
+    solver's unknowns are the nodes' displacements and velocities relative to a frame that
+    starts at their start positions and moves with their initial mean velocity (by mass, of the
+    free DOFs), so that its relative tolerance, and the run, depend neither on where the origin
+    lies nor on how fast the whole scene moves (outside check: a spinning dumbbell boosted by
+    1,000 m/s came out with 7.8 times the error and its largest tension 1.74 % high when the
+    unknowns were the velocities themselves).
 
     The solver is started afresh at every time in ``breaks`` (where a load switches on or off
     or its table jumps), so no step reaches across a jump: a step ending at a break sees the
@@ -50,14 +54,20 @@ def integrate_rk45(system: System, state: State, times: NDArray[np.float64], rto
     inner = [float(b) for b in (breaks if breaks is not None else ()) if t0 < b < t_end]
     bounds = [t0, *sorted(set(inner)), t_end]
     x0 = np.array(state.q.x, dtype=float)
-    y = np.concatenate([np.zeros(3 * n), np.ravel(state.v)]).astype(float)
+    u0 = _mean_velocity(np.asarray(state.v, dtype=float).reshape(n, 3), inv_mass)
+
+    def frame(t: float) -> NDArray[np.float64]:
+        """Positions (n, 3) of the moving frame at ``t``."""
+        return x0 + (t - t0) * u0
+
+    y = np.concatenate([np.zeros(3 * n), np.ravel(np.reshape(state.v, (n, 3)) - u0)]).astype(float)
     on_frame(t0, state)
     next_frame = 1
     for start, stop in zip(bounds[:-1], bounds[1:]):
         before_stop = float(np.nextafter(stop, start))   # the loads' left limit at the break
 
         def rhs(t: float, y: NDArray[np.float64]) -> NDArray[np.float64]:
-            x, v = x0 + y[:3 * n].reshape(n, 3), y[3 * n:].reshape(n, 3)
+            x, v = frame(t) + y[:3 * n].reshape(n, 3), u0 + y[3 * n:].reshape(n, 3)
             forces(min(t, before_stop), x, no_rotation, v, spin, problem, work)
             return np.concatenate([y[3 * n:], (work.f_node * inv_mass).ravel()])
 
@@ -71,8 +81,9 @@ def integrate_rk45(system: System, state: State, times: NDArray[np.float64], rto
             dense = solver.dense_output()
             while next_frame < len(times) and times[next_frame] <= solver.t + 1e-12:
                 at = dense(times[next_frame]) if times[next_frame] < solver.t else solver.y
-                state.q = Configuration(x0 + at[:3 * n].reshape(n, 3))
-                state.v = at[3 * n:].copy()
+                state.q = Configuration(frame(float(times[next_frame]))
+                                        + at[:3 * n].reshape(n, 3))
+                state.v = (u0 + at[3 * n:].reshape(n, 3)).ravel()
                 on_frame(float(times[next_frame]), state)
                 next_frame += 1
             if on_progress is not None and stats.steps % 50 == 0:
@@ -81,3 +92,12 @@ def integrate_rk45(system: System, state: State, times: NDArray[np.float64], rto
         first_step = None
         stats.function_evaluations += solver.nfev
     return stats
+
+
+def _mean_velocity(v: NDArray[np.float64], inv_mass: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The mass-weighted mean velocity (3,) [m/s] of the free DOFs (``inv_mass`` > 0) of the
+    node velocities ``v`` (n, 3), component by component; 0 where no DOF is free."""
+    free = inv_mass > 0.0
+    mass = np.where(free, 1.0 / np.where(free, inv_mass, 1.0), 0.0)
+    total = mass.sum(axis=0)
+    return np.where(total > 0.0, (mass * v).sum(axis=0) / np.where(total > 0.0, total, 1.0), 0.0)
