@@ -291,11 +291,13 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
         "s, -", "Dynamic runs: the load's factor over time as `[[t, factor], ...]` rows, times "
         ">= 0 in non-decreasing order, linear between rows, a repeated time a jump (the factor "
         "after it holds from that time on), the first and last factors held before and after. "
-        "Replaces `ramp`; not set: `ramp` decides. The integrators land on every row's time."),
+        "Replaces `ramp`; not set: `ramp` decides. The integrators land on every row's time; "
+        "implicit schemes start afresh at its jumps only."),
     "loads.start": (
         "s", ">= 0. Dynamic runs: the load acts from this time on (factor 0 before); the "
-        "integrators land on it and a multistep or generalized-alpha scheme starts afresh "
-        "there, so a pulse gives its impulse exactly. Static runs: must stay 0."),
+        "integrators land on it and, where the factor jumps there, a multistep or "
+        "generalized-alpha scheme starts afresh, so a pulse gives its impulse exactly. Static "
+        "runs: must stay 0."),
     "loads.stop": (
         "s", "> start. Dynamic runs: the load acts until this time (factor 0 from it on), landed "
         "on like `start`; not set: to the end. Static runs: must be unset."),

@@ -46,7 +46,7 @@ from rodnet.io.results import output_directory, scene_as_dict, write_npz, write_
 from rodnet.io.vtk import VtkSeries
 from rodnet.kernels.cache import compile_timer
 from rodnet.kernels.cosserat_strain import ROTATION_STOP
-from rodnet.kernels.schedule import break_times, schedule_of
+from rodnet.kernels.schedule import break_times, jump_times, schedule_of
 from rodnet.kernels.threads import use_threads
 from rodnet.metrics import distance, mouth_area, net_metrics
 from rodnet.models.loads import timings
@@ -76,6 +76,8 @@ class Prepared:
     start_quat: NDArray[np.float64]
     """The rotation nodes' quaternions (R, 4) at the start (the integrators advance the state in
     place)."""
+    jumps: NDArray[np.float64] = dataclasses.field(default_factory=lambda: np.zeros(0))
+    """The breaks where a load's factor jumps: where implicit schemes start afresh."""
 
     @property
     def system(self) -> ThreadSystem:
@@ -134,9 +136,10 @@ def prepare(scene: Scene) -> Prepared:
     frames = frame_times(scene.simulation.duration, scene.output.frame_interval)
     if scene.initial is not None and scene.initial.from_ is not None:
         built, frames = _restart(scene, built, frames)
-    breaks = _breaks(frames, scene)
+    schedule, end = schedule_of(timings(scene)), float(frames[-1])
+    breaks = _on_frames(break_times(schedule, end), frames, scene)
     return Prepared(scene, built, np.union1d(frames, breaks), frames, breaks,
-                    built.state.q.quat.copy())
+                    built.state.q.quat.copy(), _on_frames(jump_times(schedule, end), frames, scene))
 
 
 FRAME_MEMORY = 8 * 2**30
@@ -211,11 +214,11 @@ def _static_start(scene: Scene, built: Built) -> Built:
     return dataclasses.replace(built, state=dataclasses.replace(state, v=np.zeros_like(state.v)))
 
 
-def _breaks(frames: NDArray[np.float64], scene: Scene) -> NDArray[np.float64]:
-    """Every time a load's factor jumps or kinks (window ends, table rows), a break within
-    1e-9 of the frame interval of a frame moved onto it: the steppers land on them, so no step
-    straddles one (a pulse gives its impulse exactly)."""
-    breaks = break_times(schedule_of(timings(scene)), float(frames[-1]))
+def _on_frames(breaks: NDArray[np.float64], frames: NDArray[np.float64],
+               scene: Scene) -> NDArray[np.float64]:
+    """The times ``breaks`` where a load's factor jumps or kinks (window ends, table rows) after
+    the first frame, one within 1e-9 of the frame interval of a frame moved onto it: the
+    steppers land on them, so no step straddles one (a pulse gives its impulse exactly)."""
     breaks = breaks[breaks > frames[0]]   # a restart begins at its saved frame's time
     if not len(breaks):
         return breaks
@@ -346,7 +349,7 @@ def _implicit(p: Prepared, recorder: Recorder, bar: Progress, stats: StepStats) 
     scheme = cls(p.system, _newton(p), **extra)
     return integrate_implicit(scheme, p.state, p.times, sim.dt, sim.adaptive, recorder, bar,
                               dt_max=sim.dt_max, error_tolerance=error_tolerance(p), stats=stats,
-                              restarts=frozenset(float(t) for t in p.breaks),
+                              restarts=frozenset(float(t) for t in p.jumps),
                               newton_shrinks=_rotations_creep(p))
 
 

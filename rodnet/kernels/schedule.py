@@ -67,6 +67,39 @@ def break_times(schedule: LoadSchedule, duration: float) -> np.ndarray:
     return np.unique(finite)
 
 
+def jump_times(schedule: LoadSchedule, duration: float) -> np.ndarray:
+    """The times of :func:`break_times` where a load's factor jumps (a window end where the
+    factor is not zero, a repeated table time with another factor), sorted and unique: where an
+    implicit scheme starts afresh (at a kink the state's accelerations are continuous)."""
+    out = []
+    for j in range(len(schedule.start)):
+        a, b = schedule.ptr[j], schedule.ptr[j + 1]
+        times, values = schedule.times[a:b], schedule.values[a:b]
+        start, stop = schedule.start[j], schedule.stop[j]
+        same = (times[1:] == times[:-1]) & (values[1:] != values[:-1])
+        out += [t for t in times[1:][same] if start < t < stop]
+        if start > 0.0 and _table_value(times, values, start, right=True) != 0.0:
+            out.append(start)
+        if math.isfinite(stop) and stop > start and \
+                _table_value(times, values, stop, right=False) != 0.0:
+            out.append(stop)
+    jumps = np.array(out, dtype=np.float64)
+    return np.unique(jumps[(jumps > 0.0) & (jumps < duration)])
+
+
+def _table_value(times: np.ndarray, values: np.ndarray, t: float, right: bool) -> float:
+    """A table's factor at ``t`` (window aside): the limit from the right (as
+    :func:`load_factor`) or from the left (before a jump at ``t``)."""
+    rows = np.searchsorted(times, t, side="right" if right else "left")
+    if rows == 0:
+        return float(values[0])
+    k = rows - 1
+    if k + 1 == len(times):
+        return float(values[k])
+    return float(values[k] + (values[k + 1] - values[k]) * (t - times[k])
+                 / (times[k + 1] - times[k]))
+
+
 @numba.njit(cache=True)
 def load_factor(ptr, times, values, start, stop, j, t):  # pragma: no cover - compiled
     """The factor of load ``j`` at time ``t`` (see the module docstring)."""
