@@ -30,7 +30,7 @@ from numpy.typing import NDArray
 from scipy.sparse.csgraph import connected_components
 
 from rodnet import config
-from rodnet.config import Scene
+from rodnet.config import ContactSpec, Scene
 from rodnet.contact.rigid_body import start_motion
 from rodnet.errors import SceneError, SimulationFailed
 from rodnet.integrate.explicit import integrate_explicit
@@ -764,6 +764,23 @@ def _raised_inertia(p: Prepared) -> float | None:
     return scale
 
 
+def _sunk(p: Prepared, arrays: dict[str, NDArray[Any]]) -> list[str]:
+    """A warning where a thread's centreline sank into a body at a saved frame (the contact's
+    penalty stiffness too soft for the loads: a 1 km thread of 1 m radius sank 6 m into a box
+    under the default 1e5 N/m, outside check)."""
+    depth = arrays.get("contact_depth")
+    if depth is None or not len(depth) or float(np.max(depth)) <= 1.0:
+        return []
+    k = int(np.argmax(depth))
+    stiffness = p.scene.contact.stiffness if p.scene.contact is not None else \
+        ContactSpec().stiffness
+    return [f"a thread's surface sank {float(depth[k]):.3g} thread radii into a body at t = "
+            f"{float(arrays['time'][k]):.6g} s (its centreline inside the body): contact.stiffness "
+            f"= {stiffness:g} N/m lets it in (a steady load W sinks W / stiffness, a point of "
+            "mass m hitting at speed v about v sqrt(m / stiffness)); raise it where the depth "
+            "matters, with the steps that a stiffer contact needs"]
+
+
 def _warnings(p: Prepared, stats: StepStats, monitors: dict[str, float],
               arrays: dict[str, NDArray[Any]]) -> list[str]:
     """What the user should know about a completed or failed run: a clamp on threads without
@@ -803,6 +820,7 @@ def _warnings(p: Prepared, stats: StepStats, monitors: dict[str, float],
                    "a suddenly applied moment is off (6 % of a rod's motion); set "
                    "simulation.rotary_inertia_scaling = false, or use an implicit integrator "
                    "with dt_max below the torsion period")
+    out += _sunk(p, arrays)
     if p.scene.integrator == "midpoint" and p.system.contact is not None:
         out.append("simulation.integrator = 'midpoint' with [[bodies]]: the midpoint rule is not "
                    "energy-stable in contact (a penalty force that switches on within a step "

@@ -34,6 +34,9 @@ class BodyPoints(NamedTuple):
     points: ContactPoints
     forces: PointForces
     slip_velocity: FloatArray
+    depth: FloatArray
+    """(P,) how far each point's thread surface lies inside the body [m] (radius minus the
+    signed distance of its centreline; negative: a gap)."""
     """(C, 3) tangential velocity of each point relative to the body [m/s]."""
 
 
@@ -98,7 +101,8 @@ def _evaluate(contact: BodyContact, motion: BodyMotion, b: int, points: ContactP
     query = _world_query(contact, motion, b, points.local)
     forces = contact_force(query, velocity, contact.radius[points.segment], contact.law)
     normal_speed = np.einsum("pi,pi->p", query.normal, velocity)
-    return BodyPoints(points, forces, velocity - normal_speed[:, None] * query.normal)
+    return BodyPoints(points, forces, velocity - normal_speed[:, None] * query.normal,
+                      contact.radius[points.segment] - query.distance)
 
 
 def nodal_force(contact: BodyContact, motion: BodyMotion, x: FloatArray,
@@ -246,17 +250,22 @@ class ContactState(NamedTuple):
     """(B, 3) its moment about the body's centre of mass [N m]."""
     friction_power: float
     """Rate of work dissipated by friction [W], >= 0."""
+    sunk: float
+    """The largest depth of a thread's surface in a body as a fraction of its radius (1: the
+    centreline on the surface); 0 without contact."""
 
 
 def contact_state(contact: BodyContact, motion: BodyMotion, x: FloatArray,
                   v: FloatArray) -> ContactState:
     """Contact totals at positions ``x`` and velocities ``v`` (N, 3)."""
-    total, count, power = 0.0, 0, 0.0
+    total, count, power, sunk = 0.0, 0, 0.0, 0.0
     body_force = np.zeros((contact.n_bodies, 3))
     body_moment = np.zeros((contact.n_bodies, 3))
     if not bodies_in_reach(contact, motion, x).any():  # the common case while the target is far
-        return ContactState(total, count, body_force, body_moment, power)
+        return ContactState(total, count, body_force, body_moment, power, sunk)
     for b, bp in enumerate(body_points(contact, motion, x, v)):
+        if len(bp.depth):
+            sunk = max(sunk, float((bp.depth / contact.radius[bp.points.segment]).max()))
         f = bp.forces.force
         total += float(np.linalg.norm(f, axis=1).sum())
         count += int((bp.forces.normal_force > 0.0).sum())
@@ -264,7 +273,7 @@ def contact_state(contact: BodyContact, motion: BodyMotion, x: FloatArray,
                                                       motion.position[b])
         # n is normal to the slip velocity, so f . v_T = f_T . v_T
         power -= float(np.einsum("pi,pi->", f, bp.slip_velocity))
-    return ContactState(total, count, body_force, body_moment, power)
+    return ContactState(total, count, body_force, body_moment, power, sunk)
 
 
 def step_travel(contact: BodyContact, motion: BodyMotion, x_old: FloatArray,

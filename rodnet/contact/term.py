@@ -190,14 +190,15 @@ class ContactTerm:
                      friction_work: float,
                      applied: tuple[FloatArray, FloatArray] | None = None) -> dict[str, Any]:
         """What a saved frame holds of contact: ``contact_force`` [N] (sum of the magnitudes of
-        the point forces), ``contact_count``, ``friction_work`` [J] so far, and per body (B, 3)
+        the point forces), ``contact_count``, ``contact_depth`` (the deepest thread surface in a
+        body, in thread radii), ``friction_work`` [J] so far, and per body (B, 3)
         ``body_force`` [N], ``body_moment`` [N m] (about the centre of mass; ``applied``, the
         explicit loop's last step's, where given), ``body_positions``, ``body_velocities``,
         ``body_angular_velocities`` (world axes) and ``body_rotations`` (B, 4)."""
         state = contact_state(self.bodies, motion, x, v)
         force, moment = (state.body_force, state.body_moment) if applied is None else applied
         return {"contact_force": state.total_force, "contact_count": state.count,
-                "friction_work": friction_work, "body_force": force,
+                "contact_depth": state.sunk, "friction_work": friction_work, "body_force": force,
                 "body_moment": moment, "body_positions": np.array(motion.position),
                 "body_rotations": np.array(motion.quaternion),
                 "body_velocities": np.array(motion.velocity),
@@ -210,11 +211,13 @@ class ContactTerm:
 
     def summary(self, arrays: dict[str, Any]) -> dict[str, Any]:
         """What a run with bodies adds to ``summary.json``: ``bodies`` (name to index), the
-        ``contact`` time series and the metrics ``max_contact_force``, ``max_contact_count`` and
-        ``friction_work``; and ``body_names`` to the arrays."""
+        ``contact`` time series and the metrics ``max_contact_force``, ``max_contact_count``,
+        ``max_contact_depth`` (thread radii) and ``friction_work``; and ``body_names`` to the
+        arrays."""
         arrays["body_names"] = np.array(self.bodies.names, dtype=str)
         force = arrays.get("contact_force", np.zeros(0))
         count = arrays.get("contact_count", np.zeros(0, np.int64))
+        depth = arrays.get("contact_depth", np.zeros(0))
         work = arrays.get("friction_work", np.zeros(0))
         return {"bodies": {name: i for i, name in enumerate(self.bodies.names)},
                 "contact": {"time": [float(t) for t in arrays["time"]], "force": force.tolist(),
@@ -222,4 +225,5 @@ class ContactTerm:
                             "friction_work": [float(w) for w in work]},
                 "metrics": {"max_contact_force": float(force.max(initial=0.0)),
                             "max_contact_count": int(count.max(initial=0)),
+                            "max_contact_depth": float(depth.max(initial=0.0)),
                             "friction_work": float(work[-1]) if len(work) else 0.0}}

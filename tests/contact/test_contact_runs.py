@@ -421,3 +421,20 @@ def test_a_thin_thread_rests_on_a_body_at_the_penalty_depth() -> None:
     ends = [r.summary["nodes"]["thread:start"], r.summary["nodes"]["thread:end"]]
     gap = r.arrays["positions"][-1, ends, 2] - 1e-6           # surface above the box's top
     np.testing.assert_allclose(gap, -1e-10 * 9810.0 / 100.0, rtol=0.02)
+
+
+def test_a_thread_sunk_into_a_body_is_reported_and_warned_of() -> None:
+    """The deepest thread surface in a body, in thread radii, at every frame
+    (``contact_depth``) and its largest (``max_contact_depth``); beyond one radius (the
+    centreline inside the body) the run warns. With the default stiffness the thin thread's
+    masses rest ``m g / k`` deep (0.0098 radii); at 0.1 N/m ``m g / k`` is 9.81 radii."""
+    soft = run_ok(THIN_THREAD_ON_A_BOX.replace("stiffness = 100.0", "stiffness = 0.1")
+                  .replace("damping = 5e-5", "damping = 3e-6")
+                  .replace("duration = 0.0005", "duration = 0.0008"))
+    depth = soft.arrays["contact_depth"]
+    assert depth[-1] == pytest.approx(1e-10 * 9810.0 / 0.1 / 1e-6, rel=0.05)
+    assert soft.summary["metrics"]["max_contact_depth"] == pytest.approx(depth.max())
+    assert any("sank" in w and "contact.stiffness = 0.1" in w for w in soft.summary["warnings"])
+    firm = run_ok(THIN_THREAD_ON_A_BOX)
+    assert firm.summary["metrics"]["max_contact_depth"] < 0.2    # 0.05 at the landing
+    assert not any("sank" in w for w in firm.summary["warnings"])
