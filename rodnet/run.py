@@ -316,7 +316,7 @@ def _newton(p: Prepared) -> NewtonOptions:
                             reuse_factorization=sim.reuse_factorization)
     if sim.type == "dynamic" and not sim.adaptive:
         return dataclasses.replace(options, max_iterations=FIXED_STEP_ITERATIONS,
-                                   standing_iterations=None, restraint_reach=None)
+                                   standing_iterations=None)
     if _rotations_creep(p):
         return dataclasses.replace(options, progress_iterations=NEWTON_TARGET)
     return options

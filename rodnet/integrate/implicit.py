@@ -295,15 +295,11 @@ class Scheme:
         def restraint(du: FloatArray) -> FloatArray | None:
             return rotation_overshoot(du, triples, self.options.max_rotation / d)
 
-        def reach(du: FloatArray, factor: FloatArray) -> float:
-            return rotation_reach(du, factor, triples, self.options.max_rotation / d)
-
         weights = np.full(len(free_trans), d / length)
         weights[reduced_rot] = d
         problem = NewtonProblem(p.evaluate, shorten, small, p.merit, weights, accept, active_set,
                                 s.dof_mass[free], length, restraint, on_start=start,
-                                residual_weights=self._body_weights(state, scale, h),
-                                reach=reach)
+                                residual_weights=self._body_weights(state, scale, h))
         rot = s.rotation_dofs()
         # a start that turns a node by more than the rotation cap lies beyond where the
         # exponential map is one-to-one near the solution: left out, unless every start does
@@ -731,18 +727,6 @@ def rotation_overshoot(du: FloatArray, triples: NDArray[np.int64],
     out = np.zeros_like(du)
     out[triples[over]] = (turn[over] / max_rotation - 1.0)[:, None]
     return out
-
-
-def rotation_reach(du: FloatArray, factor: FloatArray, triples: NDArray[np.int64],
-                   max_rotation: float) -> float:
-    """The largest turn of ``du`` over the rotation nodes (``triples`` (F, 3)) where
-    ``factor`` (of :func:`rotation_overshoot`) is non-zero, as a fraction of ``max_rotation``
-    (0 where there is none)."""
-    held = factor[triples[:, 0]] != 0.0
-    if not held.any():
-        return 0.0
-    vectors = du[triples[held]]
-    return float(np.sqrt(np.einsum("ij,ij->i", vectors, vectors).max())) / max_rotation
 
 
 def integrate_implicit(scheme: Scheme, state: State, times: NDArray[np.float64], dt: float,

@@ -74,12 +74,6 @@ class NewtonOptions:
     answers the shorter turns, before the rotations left too long are cut; and a step whose
     rotations were cut is not taken as the watchdog's free step. False: rotations are only
     cut, and any full step may be the free one."""
-    restraint_reach: float | None = 0.5
-    """While the restrained nodes' largest turn is below this fraction of ``max_rotation``,
-    the restraint is loosened and the correction solved again (:func:`_restrained`); None:
-    never loosened (fixed steps, ``rodnet.run._newton``: near a solution a loosened
-    correction can walk along a spin valley where the potential falls while the residual
-    rises, and there a failed solve ends the run)."""
 
 
 @dataclass
@@ -285,10 +279,6 @@ class NewtonProblem:
         halves (its round-off floor) or meets the tolerance: for static equilibria, whose forces
         are the result (a stiff cable's nodes were left 0.26 % of their weight out of balance
         by corrections of 1e-13 m, its reactions 0.26 % high).
-    reach : callable, optional
-        ``reach(du, factor) -> float``: the largest turn of ``du`` over the nodes where
-        ``factor`` (of ``restraint``) is non-zero, as a fraction of ``max_rotation`` (see
-        :func:`_restrained`); None: restrained corrections are not loosened.
     """
 
     evaluate: Evaluate
@@ -305,7 +295,6 @@ class NewtonProblem:
     on_start: Callable[[FloatArray], None] | None = None
     residual_weights: FloatArray | None = None
     to_residual: bool = False
-    reach: Callable[[FloatArray, FloatArray], float] | None = None
 
 
 def tolerance(options: NewtonOptions, scale: float) -> float:
@@ -552,7 +541,7 @@ def _direction(p: NewtonProblem, solver: LinearSolver, at: _Point, matrix: str,
         # downhill
         return _direction(p, solver, at, "convex", options)
     if restrain:
-        du = _restrained(p, solver, original, at.r, du, options.restraint_reach)
+        du = _restrained(p, solver, original, at.r, du)
     at.du = du
     at.step = du if p.shorten is None else p.shorten(du)
     at.slope = _slope(p, at, du, matrix)
@@ -634,10 +623,10 @@ def _restrains(p: NewtonProblem, options: NewtonOptions) -> bool:
 
 
 def _restrained(p: NewtonProblem, solver: LinearSolver, S: IterationMatrix, r: FloatArray,
-                du: FloatArray, reach_below: float | None = 0.5) -> FloatArray:
+                du: FloatArray) -> FloatArray:
     """The correction solved again with the rotations it turns too far restrained: the
     diagonal of ``S`` at every DOF of a node that ``du`` turns by ``turn > max_rotation`` is
-    raised by ``c (turn / max_rotation - 1) |S_ii|`` (``p.restraint``), a Levenberg-Marquardt
+    raised by ``(turn / max_rotation - 1) |S_ii|`` (``p.restraint``), a Levenberg-Marquardt
     shift on those nodes alone; ``du`` itself when no node turns that far, or when the
     restrained matrix cannot be factorised or its correction does not head downhill.
 
@@ -645,42 +634,23 @@ def _restrained(p: NewtonProblem, solver: LinearSolver, S: IterationMatrix, r: F
     element, the section of a thread about its own axis) would turn by radians, cutting its
     rotation alone leaves the rest of the correction answering a turn that is not made (the
     neighbouring positions are moved for it), and the cut step raises the residual; the
-    restrained correction is consistent with the shorter turn.
-
-    ``c = 1`` brings a node whose own diagonal dominates its equations to the cap. A node
-    turned by a mode of several nodes that is far softer than their diagonals (the sections
-    of a crumpled thread turning together) is held far shorter, and repeating such steps
-    creeps (0.3 % of the residual per iteration for a hundred iterations on the pinned
-    reference net at 2 ms): while the restrained nodes' largest turn (``p.reach``) is below
-    ``reach_below`` of the cap (None: never), ``c`` is scaled by it and the system solved again,
-    up to :data:`RESTRAINT_TRIES` times (the turn of such a mode scales as ``1 / c``). The
-    factorisation left in ``solver`` is the last restrained one (used only by the polishing
-    of a converged iterate, which needs a correction only near the solution, where nothing
-    is restrained)."""
+    restrained correction is consistent with the shorter turn. The shift brings a node whose
+    own diagonal dominates its equations to the cap; nodes that turn through a mode far softer
+    than their diagonals are held shorter (validation/benchmarks/results/newton_restraint.md:
+    loosening the shift there was tried and not kept). The factorisation left in ``solver``
+    is the restrained one (used only by the polishing of a converged iterate, which needs a
+    correction only near the solution, where nothing is restrained)."""
     factor = p.restraint(du)   # called only where _restrains(p, options)
     if factor is None:
         return du
-    shift = factor * np.abs(diagonal(S))
-    best = du
-    for _ in range(RESTRAINT_TRIES):
-        try:
-            solver.factorize(add_diagonal(S, shift))
-        except (FloatingPointError, RuntimeError):
-            return best
-        restrained = -solver.solve(r)
-        if not np.isfinite(restrained).all() or _dot(r, restrained) >= 0.0:
-            return best
-        best = restrained
-        if p.reach is None or reach_below is None:
-            return best
-        reach = p.reach(restrained, factor)
-        if reach >= reach_below:
-            return best
-        shift = shift * max(reach, reach_below / 64.0)
-    return best
-
-RESTRAINT_TRIES = 4
-"""Restrained solves of one correction at most (the first and three loosened ones)."""
+    try:
+        solver.factorize(add_diagonal(S, factor * np.abs(diagonal(S))))
+    except (FloatingPointError, RuntimeError):
+        return du
+    restrained = -solver.solve(r)
+    if not np.isfinite(restrained).all() or _dot(r, restrained) >= 0.0:
+        return du
+    return restrained
 
 
 def _polished(p: NewtonProblem, solver: LinearSolver, at: _Point) -> _Point:
