@@ -30,7 +30,7 @@ from numpy.typing import NDArray
 from scipy.sparse.csgraph import connected_components
 
 from rodnet import config
-from rodnet.config import ContactSpec, Scene
+from rodnet.config import Scene
 from rodnet.contact.rigid_body import start_motion
 from rodnet.errors import SceneError, SimulationFailed
 from rodnet.integrate.explicit import integrate_explicit
@@ -772,8 +772,7 @@ def _sunk(p: Prepared, arrays: dict[str, NDArray[Any]]) -> list[str]:
     if depth is None or not len(depth) or float(np.max(depth)) <= 1.0:
         return []
     k = int(np.argmax(depth))
-    stiffness = p.scene.contact.stiffness if p.scene.contact is not None else \
-        ContactSpec().stiffness
+    stiffness = p.system.contact.bodies.law.stiffness   # type: ignore[union-attr]
     return [f"a thread's surface sank {float(depth[k]):.3g} thread radii into a body at t = "
             f"{float(arrays['time'][k]):.6g} s (its centreline inside the body): contact.stiffness "
             f"= {stiffness:g} N/m lets it in (a steady load W sinks W / stiffness, a point of "

@@ -34,10 +34,10 @@ class BodyPoints(NamedTuple):
     points: ContactPoints
     forces: PointForces
     slip_velocity: FloatArray
-    depth: FloatArray
-    """(P,) how far each point's thread surface lies inside the body [m] (radius minus the
-    signed distance of its centreline; negative: a gap)."""
     """(C, 3) tangential velocity of each point relative to the body [m/s]."""
+    depth: FloatArray
+    """(C,) how far each point's thread surface lies inside the body [m] (radius minus the
+    signed distance of its centreline; negative: a gap)."""
 
 
 def _world_query(contact: BodyContact, motion: BodyMotion, b: int,
@@ -99,10 +99,11 @@ def _evaluate(contact: BodyContact, motion: BodyMotion, b: int, points: ContactP
         velocity = velocity - body_point_velocity(points.position, motion.position[b],
                                                   motion.velocity[b], motion.omega[b])
     query = _world_query(contact, motion, b, points.local)
-    forces = contact_force(query, velocity, contact.radius[points.segment], contact.law)
+    radius = contact.radius[points.segment]
+    forces = contact_force(query, velocity, radius, contact.law)
     normal_speed = np.einsum("pi,pi->p", query.normal, velocity)
     return BodyPoints(points, forces, velocity - normal_speed[:, None] * query.normal,
-                      contact.radius[points.segment] - query.distance)
+                      radius - query.distance)
 
 
 def nodal_force(contact: BodyContact, motion: BodyMotion, x: FloatArray,
