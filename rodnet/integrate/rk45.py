@@ -54,13 +54,13 @@ def integrate_rk45(system: System, state: State, times: NDArray[np.float64], rto
     inner = [float(b) for b in (breaks if breaks is not None else ()) if t0 < b < t_end]
     bounds = [t0, *sorted(set(inner)), t_end]
     x0 = np.array(state.q.x, dtype=float)
-    u0 = _mean_velocity(np.asarray(state.v, dtype=float).reshape(n, 3), inv_mass)
+    u0 = _mean_velocity(state.velocities, inv_mass)
 
     def frame(t: float) -> NDArray[np.float64]:
         """Positions (n, 3) of the moving frame at ``t``."""
         return x0 + (t - t0) * u0
 
-    y = np.concatenate([np.zeros(3 * n), np.ravel(np.reshape(state.v, (n, 3)) - u0)]).astype(float)
+    y = np.concatenate([np.zeros(3 * n), np.ravel(state.velocities - u0)]).astype(float)
     on_frame(t0, state)
     next_frame = 1
     for start, stop in zip(bounds[:-1], bounds[1:]):
