@@ -867,15 +867,28 @@ def _warnings(p: Prepared, stats: StepStats, monitors: dict[str, float],
             monitors.get("inside_out_elements_frames", 0.0) > 0.1 * max(frames, 1):
         # a passing inversion (the reference deployment: at 5 of 301 frames, 4.7 N) is not told
         scaled = scale is not None
-        out.append(f"up to {inside_out} rod element(s) were inside out at saved frames (the "
-                   "chord against the section's axis, FORMULATION.md C51): their sections did not "
-                   "turn with their chords, and the regularising spring of 0.01 EA pulled on "
-                   "chords shorter than their rest length, where a thread is slack"
-                   + ("; the explicit integrator's raised rotary inertia (factor "
-                      f"{scale:.3g}) slows the sections: use an implicit "
-                      "integrator or simulation.rotary_inertia_scaling = false"
-                      if scaled else "; use more elements (model.elements_per_thread, or "
-                      "rods.elements) or shorter steps"))
+        # still folded at the end: a slack chord that turned over past its section (two masses
+        # passing each other on a slack thread) is short only while it turns
+        folded = int(monitors.get("folded_elements_last", 0))
+        said = (f"up to {inside_out} rod element(s) were inside out at saved frames (the chord "
+                "against the section's axis, FORMULATION.md C51)")
+        if folded and p.scene.model.axial == "tension-only":
+            # pushed through themselves: more elements or shorter steps would not help
+            out.append(said + f", {folded} of them shorter than a tenth of their rest length at "
+                       "the last frame: "
+                       "compression pushed them through themselves, which the tension-only law "
+                       "does not resist (only the regularising spring of 0.01 EA holds them); a "
+                       "rod that must push (a column, a rod driven from behind) needs "
+                       "model.axial = 'linear'")
+        else:
+            out.append(said + ": their sections did not turn with their chords, and the "
+                       "regularising spring of 0.01 EA pulled on chords shorter than their rest "
+                       "length, where a thread is slack"
+                       + ("; the explicit integrator's raised rotary inertia (factor "
+                          f"{scale:.3g}) slows the sections: use an implicit "
+                          "integrator or simulation.rotary_inertia_scaling = false"
+                          if scaled else "; use more elements (model.elements_per_thread, or "
+                          "rods.elements) or shorter steps"))
     phi = max(stats.max_element_rotation or 0.0, monitors.get("max_element_rotation", 0.0))
     if phi <= ROTATION_STOP:
         return out

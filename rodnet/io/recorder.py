@@ -21,7 +21,7 @@ from rodnet.state import State
 FrameFunction = Callable[[float, State], dict[str, Any]]
 FrameCheck = Callable[[float, dict[str, Any]], None]
 
-MONITORS = ("max_element_rotation", "inside_out_elements")
+MONITORS = ("max_element_rotation", "inside_out_elements", "folded_elements")
 """Frame scalars the recorder tracks, without saving them: the largest (under their name), the
 last frame's (``<name>_last``) and the number of frames where they are positive
 (``<name>_frames``)."""

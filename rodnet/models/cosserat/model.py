@@ -348,16 +348,22 @@ class CosseratModel:
         ``(N_1, N_2, N_3)`` [N] and ``section_moments`` (E, 3) ``(M_1, M_2, M_3)`` [N m]
         (damping and the rotation stop included; single precision: they would have made the
         reference deployment's result.npz 28 % larger in double); and,
-        not saved, the largest element rotation ``max_element_rotation`` [rad] and the number of
-        elements turned inside out, ``inside_out_elements`` (axial strain below -1, C51)."""
+        not saved, the largest element rotation ``max_element_rotation`` [rad], the number of
+        elements turned inside out, ``inside_out_elements`` (axial strain below -1, C51), and of
+        those whose chord is also shorter than a tenth of the rest length, ``folded_elements``
+        (pushed through themselves, not turned)."""
         eps, stress = self.section_state(q, v)
+        ends = self._element_pose(q)[0]
+        inside_out = eps[:, 0] < -1.0
+        short = np.linalg.norm(ends[:, 1] - ends[:, 0], axis=1) < 0.1 * self.rest_length
         return {"positions": q.x.copy(), "velocities": v[:3 * self.n_nodes].reshape(-1, 3).copy(),
                 "rotations": q.quat[self._rotation_of_node], "tension": self._tension(stress[:, 0]),
                 "curvature": np.hypot(eps[:, 4], eps[:, 5]), "twist": eps[:, 3],
                 "section_forces": stress[:, :3].astype(np.float32),
                 "section_moments": stress[:, 3:].astype(np.float32),
                 "max_element_rotation": float(self.element_rotation(q).max(initial=0.0)),
-                "inside_out_elements": float(np.count_nonzero(eps[:, 0] < -1.0))}
+                "inside_out_elements": float(np.count_nonzero(inside_out)),
+                "folded_elements": float(np.count_nonzero(inside_out & short))}
 
     @property
     def _rotation_of_node(self) -> NDArray[np.int64]:
