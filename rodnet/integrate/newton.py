@@ -409,8 +409,11 @@ def newton(problem: NewtonProblem, u0: FloatArray, scale: float, solver: LinearS
             if nxt is None:
                 nxt = _residual_descent(p, solver, here, options, memory)
         else:
+            # without a potential, the natural monotonicity test and the free step accept
+            # rises of |r|: where the residual has stood, only decreases from here on
+            strict = not here.potential and since_low >= CYCLE_ITERATIONS
             nxt, watch, free, watched = _next(p, solver, here, options, w, watch, free,
-                                              watched, memory)
+                                              watched, memory, strict)
         if nxt is None:
             origin = here if watch is None else watch
             return done(origin, False, f"no step along the Newton correction reduces the "
@@ -463,6 +466,13 @@ def newton(problem: NewtonProblem, u0: FloatArray, scale: float, solver: LinearS
     return done(here, False, f"no convergence in {options.max_iterations} iterations "
                 f"(residual {here.norm:.3g} N, tolerance {tol:.3g} N)")
 
+
+CYCLE_ITERATIONS = 10
+"""Iterations without a new lowest Euclidean residual after which a solve without a potential
+takes only steps that decrease its merit ``|r|^2 / 2`` (:func:`_next`, ``strict``): a cable
+thread landing on a box with friction at a fixed BDF2 step cycled between 0.489 and 0.524 N
+(the natural monotonicity test accepting the rise, Armijo the fall) until the iteration
+limit."""
 
 STANDING = 1e-3
 """A residual stands while it stays above ``1 - STANDING`` of its lowest
@@ -564,17 +574,21 @@ def _slope(p: NewtonProblem, at: _Point, du: FloatArray, matrix: str) -> float:
 
 def _next(p: NewtonProblem, solver: LinearSolver, here: _Point, options: NewtonOptions,
           w: FloatArray, watch: _Point | None, free: bool, watched: int,
-          memory: dict[str, float]) -> tuple[_Point | None, _Point | None, bool, int]:
+          memory: dict[str, float], strict: bool = False
+          ) -> tuple[_Point | None, _Point | None, bool, int]:
     """One iteration from ``here``: the full Newton step, the watchdog, backtracking and the
     shifted convexified step, in that order (see :func:`newton`). Returns the next iterate
-    (None when none decreases the merit) and the watchdog's state ``watch, free, watched``."""
+    (None when none decreases the merit) and the watchdog's state ``watch, free, watched``.
+    ``strict``: no free step, and no natural monotonicity test (only Armijo decreases of the
+    merit and the residual filter): steps that raise the merit cannot then cycle."""
+    natural = None if strict else solver
     trial = _point(p, here.u + here.step, here)
     if watch is None and (_halves_residual(trial, memory)
-                          or _decreases(trial, here, 1.0, options, solver, w)):
+                          or _decreases(trial, here, 1.0, options, natural, w)):
         return trial, None, True, watched
     cut = (_restrains(p, options) and here.du is not None
            and not np.array_equal(here.step, here.du))   # still cut after the restraint
-    if watch is None and free and not cut and math.isfinite(trial.norm):
+    if watch is None and free and not strict and not cut and math.isfinite(trial.norm):
         return trial, here, free, 0                    # the watchdog's free step
     if watch is not None and _decreases(trial, watch, 1.0, options):
         return trial, None, True, watched              # the free step paid off
@@ -585,7 +599,7 @@ def _next(p: NewtonProblem, solver: LinearSolver, here: _Point, options: NewtonO
     free = free and watch is None                      # no free step again before a full one
     if origin is not here and p.on_accept is not None:
         p.on_accept(origin.u)    # the caller's chart (a static solve's base) goes back too
-    nxt = _backtrack(p, origin, 1.0 / 64.0, options, solver if origin is here else None, w) \
+    nxt = _backtrack(p, origin, 1.0 / 64.0, options, natural if origin is here else None, w) \
         if origin.slope < 0.0 else None
     if nxt is None and origin.potential:
         nxt = _levenberg(p, solver, origin, options, memory)
