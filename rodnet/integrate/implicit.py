@@ -822,7 +822,6 @@ def integrate_implicit(scheme: Scheme, state: State, times: NDArray[np.float64],
                 raise SimulationFailed(
                     f"{steps:,} steps since the last frame, the last {h_try:.3g} s long, at t = "
                     f"{t:.6g} s: the step control finds no usable step for the motion there (a "
-                    "tension-only element pushed through itself under the midpoint rule, a "
                     "section spun by a moment that nothing resists); another integrator (bdf2 "
                     "and backward-euler damp), or supports or stiffness against that motion")
             stats.retaken_steps += new.retaken
@@ -846,8 +845,9 @@ CRAWL_STEPS, CRAWL_FRACTION = 20_000, 1e-5
 """An implicit run stops where it has taken more than this many steps since its last frame and
 its last step is shorter than this fraction of the frame interval: its step control has found
 no usable step (the midpoint rule on a free tension-only element pushed through itself crawled
-at 1e-8 s steps, 11,000 steps in 30 s for 4e-4 s of its 0.02 s), as CVODE's ``mxstep`` stops a
-solve that takes too many steps between outputs."""
+at 1e-8 s steps, 11,000 steps in 30 s for 4e-4 s of its 0.02 s, before its stresses took the
+step's mean strains, C56), as CVODE's ``mxstep`` stops a solve that takes too many steps
+between outputs."""
 
 
 BODY_MOMENTUM_FLOOR = 1e-4

@@ -134,8 +134,8 @@ def energy_guard(growth: float = 0.1, potential: bool = False) -> FrameCheck:
     With ``potential``, for scenes whose only load is a constant gravity: the energy counts
     gravity's potential and may not rise above the first frame's by more than ``growth`` of
     the largest energy in motion of the frames so far (the potential has no natural zero). An
-    integrator that is not stable on a stiff nonlinear problem (the midpoint rule on a stiff
-    pendulum at a large fixed step, symplectic Euler on a light rope pressed on a drum) would
+    integrator that is not stable on a stiff nonlinear problem (the midpoint rule with contact
+    at a large fixed step, symplectic Euler on a light rope pressed on a drum) would
     otherwise report a diverging run as done."""
     start: list[float] = []
     largest = [0.0]

@@ -154,6 +154,27 @@ def secant_axial_force(start: FloatArray, end: FloatArray, EA: FloatArray, etaA:
     return np.where(active, total, 0.0), np.where(active, d_elastic + d_viscous, 0.0)
 
 
+def secant_strain(start: FloatArray, end: FloatArray, kink_strain: float) -> FloatArray:
+    """The strain ``e*`` between ``start`` and ``end`` at which the tension-only law's force is
+    its secant over the step, ``r(e*) = (R(end) - R(start)) / (end - start)`` with ``R`` the
+    integral of :func:`ramp` (S6): the Cosserat element's midpoint rule takes its axial
+    stress there (cosserat FORMULATION.md, C56), so that its work is the change of the stored
+    energy. The mean strain where the change is below :data:`SECANT_SMALL` or a strain lies
+    below ``e = -1`` (C51); at or below zero where the secant is zero (slack all the step)."""
+    mean = 0.5 * (start + end)
+    change = end - start
+    usable = (np.abs(change) > SECANT_SMALL) & (np.minimum(start, end) > -1.0)
+    safe = np.where(usable, change, 1.0)
+    one = np.ones_like(mean)
+    secant = (axial_energy(end, one, one, kink_strain, True)
+              - axial_energy(start, one, one, kink_strain, True)) / safe
+    d = kink_strain
+    inverse = np.where(secant <= 0.0, np.minimum(mean, 0.0),
+                       np.where(secant < 0.5 * d, np.sqrt(2.0 * d * np.maximum(secant, 0.0)),
+                                secant + 0.5 * d))
+    return np.where(usable, inverse, mean)
+
+
 def step_potential(strain: FloatArray, strain_reference: FloatArray, inv_h: float,
                    EA: FloatArray, etaA: FloatArray, rest_length: FloatArray, kink_strain: float,
                    tension_only: bool) -> FloatArray:

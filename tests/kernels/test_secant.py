@@ -83,3 +83,19 @@ def test_the_tangent_is_the_derivative_of_the_force(tension_only: bool) -> None:
     smooth = (np.abs(e1) > 1e-6) & (np.abs(e1 - KINK) > 1e-6)
     scale = np.abs(K).max()
     np.testing.assert_allclose(numeric[smooth], K[smooth], rtol=0, atol=2e-5 * scale)
+
+
+def test_secant_strain_is_where_the_ramp_takes_its_secant() -> None:
+    """``r(e*) = (R(e1) - R(e0)) / (e1 - e0)`` for pairs across the kink, inside it, slack and
+    taut (the rod's midpoint stresses, cosserat C56), with ``e*`` between the two strains."""
+    from rodnet.kernels.tension import axial_energy, ramp, secant_strain
+    rng = np.random.default_rng(3)
+    d = 1e-6
+    start = rng.choice([-1e-5, -1e-7, 3e-7, 2e-6, 1e-4], 400) * rng.uniform(0.5, 1.5, 400)
+    end = rng.choice([-1e-5, -1e-7, 3e-7, 2e-6, 1e-4], 400) * rng.uniform(0.5, 1.5, 400)
+    e = secant_strain(start, end, d)
+    one = np.ones_like(start)
+    secant = (axial_energy(end, one, one, d, True) - axial_energy(start, one, one, d, True)) \
+        / (end - start)
+    assert np.allclose(ramp(e, d)[0], secant, rtol=1e-9, atol=1e-18)
+    assert np.all((e >= np.minimum(start, end) - 1e-15) & (e <= np.maximum(start, end) + 1e-15))

@@ -31,6 +31,7 @@ from rodnet.kernels.cosserat_compiled import (SERIES_ARGUMENTS, RodElements, ele
 from rodnet.kernels.hinge import Hinges, no_hinges
 from rodnet.kernels.schedule import LoadSchedule, factors
 from rodnet.kernels.segments import Segments
+from rodnet.kernels.tension import secant_strain
 from rodnet.state import Configuration, Linearization, StepRate
 
 FloatArray = NDArray[np.float64]
@@ -216,6 +217,13 @@ class CosseratModel:
         """DOFs of the blocks of :meth:`forces`: elements (E, 12), rotation nodes (R, 3)."""
         return [self.element_dofs, 3 * (self.n_nodes + np.arange(self.n_rot))[:, None] + np.arange(3)]
 
+    secant_forces = True
+    """The midpoint rule's forces (a :class:`StepRate` with a ``start``) take the stresses of
+    the mean of the step's start and end strains and damping at their change over the step,
+    with the strain operator of the midpoint configuration (C56): the stresses of the
+    midpoint's own strains read a rod turning by ``theta`` in a step as shortened by
+    ``theta^2 / 8``, and damping that as a strain rate of first order in the step."""
+
     @property
     def potential_exact(self) -> bool:
         """Whether :meth:`potential` accounts for every force but the gyroscopic ones (small
@@ -231,7 +239,12 @@ class CosseratModel:
         ``rate``, the elements' damping at the step's strain rates (C53)."""
         x, quat, ve = self._element_state(q, v)
         step = None if rate is None else (rate.reference, rate.inv_h)
-        args = (self.rest_length, self.reference_strain, self.stiffness, self.tau, x, quat, ve,
+        reference = self.reference_strain
+        if rate is not None and rate.start is not None:   # the midpoint rule (C56)
+            # the kernels' strains are then those of the mean: the stresses take it, and the
+            # damping its change from the start, (e_0 + e_1) / 2 - e_0 over h / 2
+            reference = reference - self._secant_shift(q, rate)
+        args = (self.rest_length, reference, self.stiffness, self.tau, x, quat, ve,
                 self.tension_only, self.kink_strain, step)
         if need_matrices:
             shift = None if linearization is None else linearization.strain_shift
@@ -255,6 +268,21 @@ class CosseratModel:
         if len(body_moment):
             np.add.at(load_block, self._load_rot, -so3.hat(body_moment))
         return g, [K_el, load_block], [C_el, d_gyro]
+
+    def _secant_shift(self, q: Configuration, rate: StepRate) -> FloatArray:
+        """(E, 6) ``(e_0 + e_1) / 2 - e(q)`` (the axial part of the tension-only law at its
+        secant strain, :func:`~rodnet.kernels.tension.secant_strain`) for the midpoint ``q = q_0 o exp(dq / 2)`` of a step
+        from ``rate.start`` (strains ``rate.reference``) to ``q_1 = q o exp(dq / 2)`` (C56)."""
+        start = rate.start
+        assert start is not None
+        half = so3.quat_multiply(so3.quat_conjugate(start.quat), q.quat)
+        end = Configuration(2.0 * q.x - start.x, so3.quat_multiply(q.quat, half))
+        still = np.zeros(self.n_dof)
+        start_strain, end_strain = rate.reference, self.strains(end, still)[0]
+        mean = 0.5 * (start_strain + end_strain)
+        if self.tension_only:   # the axial secant of the kinked law
+            mean[:, 0] = secant_strain(start_strain[:, 0], end_strain[:, 0], self.kink_strain)
+        return mean - self.strains(q, still)[0]
 
     def strains(self, q: Configuration, v: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Element strains ``[Gamma, K]`` and their rates (E, 6): what a
