@@ -339,7 +339,11 @@ def _validate(cases: Path, output: Path, quick: bool, report_dir: Path | None
     from rodnet.validate import case_folders, read_expected, report, validate_case
 
     every = case_folders(cases)
-    slow = {f for f in every if read_expected(f).get("slow", False)}
+    try:
+        slow = {f for f in every if read_expected(f).get("slow", False)}
+    except SceneError as exc:
+        print(f"rodnet: bad input: {exc}. Nothing was run.", file=sys.stderr)
+        return EXIT_BAD_INPUT, "", None
     folders = [f for f in every if not (quick and f in slow)]
     if not folders:
         print(f"rodnet: bad input: no validation cases (scene.toml + expected.toml) under {cases}",

@@ -63,6 +63,15 @@ def scene_from_toml(text: str, overrides: typing.Sequence[str] = (), source: str
     return scene_from_dict(apply_overrides(data, overrides), source=source)
 
 
+def canonical_key(key: str) -> str:
+    """A scene key in one spelling: ``materials.0.viscosity`` and ``materials[0].viscosity``
+    (both of which ``--set`` takes) as the second."""
+    out = ""
+    for part in key.strip().replace("[", ".").replace("]", "").split("."):
+        out += (f"[{part}]" if part.isdigit() else f".{part}") if out else part
+    return out
+
+
 def apply_overrides(data: dict[str, Any], overrides: typing.Sequence[str]) -> dict[str, Any]:
     """Return a copy of ``data`` with every ``KEY=VALUE`` override set."""
     import copy

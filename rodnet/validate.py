@@ -34,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+from rodnet.errors import SceneError
 from rodnet.run import RunResult, run
 from rodnet.scene import load_scene
 
@@ -55,8 +56,52 @@ def case_folders(root: Path) -> list[Path]:
     return sorted(p.parent for p in root.glob("*/expected.toml") if (p.parent / "scene.toml").exists())
 
 
+QUANTITIES = ("position", "displacement", "metric")
+CHECK_KEYS = {"quantity", "node", "component", "frame", "name", "expected", "abs_tol", "rel_tol"}
+
+
 def read_expected(folder: Path) -> dict[str, Any]:
-    return tomllib.loads((folder / "expected.toml").read_text())
+    """The case's ``expected.toml``, its ``[[checks]]`` checked (:class:`SceneError` naming the
+    file, the entry and the key: a bad check is bad input, not a failed run)."""
+    path = folder / "expected.toml"
+    try:
+        data = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(str(path), "...", f"is not valid TOML: {exc}") from None
+    checks = data.get("checks", [])
+    if not isinstance(checks, list) or not all(isinstance(c, dict) for c in checks):
+        raise SceneError(f"{path}: checks", checks, "must be an array of tables [[checks]]")
+    for i, check in enumerate(checks):
+        _check_entry(check, f"{path}: checks[{i}]")
+    return data
+
+
+def _check_entry(check: dict[str, Any], where: str) -> None:
+    """One ``[[checks]]`` table: its keys, the quantity and what that quantity needs."""
+    unknown = sorted(set(check) - CHECK_KEYS)
+    if unknown:
+        raise SceneError(f"{where}.{unknown[0]}", check[unknown[0]],
+                         f"is not a key of a check: {sorted(CHECK_KEYS)}")
+    quantity = check.get("quantity")
+    if quantity not in QUANTITIES:
+        raise SceneError(f"{where}.quantity", quantity, f"must be one of {list(QUANTITIES)}")
+    needed = "name" if quantity == "metric" else "node"
+    if not isinstance(check.get(needed), str) or not check[needed]:
+        raise SceneError(f"{where}.{needed}", check.get(needed),
+                         f"a {quantity} check needs it: a "
+                         + ("metric of summary.json" if needed == "name" else "node selector"))
+    if check.get("component", "norm") not in (*COMPONENTS, "norm"):
+        raise SceneError(f"{where}.component", check["component"], "must be x, y, z or norm")
+    if not isinstance(check.get("frame", -1), int):
+        raise SceneError(f"{where}.frame", check["frame"], "must be an integer (a saved frame)")
+    for key in ("expected", "abs_tol", "rel_tol"):
+        value = check.get(key, 0.0)
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or \
+                (key != "expected" and not value >= 0.0):
+            raise SceneError(f"{where}.{key}", value, "must be a number"
+                             + (" >= 0" if key != "expected" else ""))
+    if "expected" not in check:
+        raise SceneError(f"{where}.expected", None, "is required: the value the check expects")
 
 
 def run_case(folder: Path, output: Path) -> tuple[RunResult, list[CheckResult]]:
@@ -128,7 +173,11 @@ def check_value(check: dict[str, Any], result: RunResult) -> float:
     frame = int(check.get("frame", -1))
     if not -len(positions) <= frame < len(positions):
         return math.nan
-    node = result.summary["nodes"][check["node"]]
+    nodes = result.summary["nodes"]
+    if check["node"] not in nodes:
+        raise SceneError("checks.node", check["node"], "names no node of the scene (such as "
+                         f"{', '.join(sorted(nodes)[:4])})")
+    node = nodes[check["node"]]
     vec = positions[frame, node]
     if check["quantity"] == "displacement":
         vec = vec - positions[0, node]

@@ -79,6 +79,10 @@ def test_latin_hypercube_times_the_grid(scene: Path) -> None:
     (["net.launch_speed=5,9"], [], 4, "--samples"),
     (["net.launch_speed=5,9", "net.launch_speed=6"], [], None, "--vary"),
     (["net.launch_speed=5,9"], ["net.launch_speed=3"], None, "--set"),
+    # one key in the two spellings --set takes (the sweep had run the second's values under
+    # the first's labels, and dropped a --set so spelt; outside check)
+    (["materials[0].viscosity=1e6,2e6", "materials.0.viscosity=5e6"], [], None, "--vary"),
+    (["materials[0].viscosity=1e6,2e6"], ["materials.0.viscosity=5e6"], None, "--set"),
     (["net.launch_speeed=5,9"], [], None, "net.launch_speeed"),
     (["simulation.integrator=explicit,leapfrog"], [], None, "simulation.integrator"),
 ])

@@ -110,6 +110,7 @@ def integrate_explicit(system: System, state: State, times: NDArray[np.float64],
     on_frame(t0, state)
     for t_start, t_end in zip(times[:-1], times[1:]):
         n, h = whole_steps(t_start, t_end, control.dt)
+        peak = 0.0   # counted once the frame has passed its checks
         pieces = -(-n // CALL_STEPS)
         ends = [0] + [round(i * n / pieces) for i in range(1, pieces + 1)]
         for k in range(pieces):   # one call per frame, unless it would run for minutes
@@ -125,7 +126,7 @@ def integrate_explicit(system: System, state: State, times: NDArray[np.float64],
             if done.status == 0 and finite:  # a failed call's steps and peak are the divergence's
                 if done.steps:
                     stats.record_steps(done.steps, done.h_min, done.h_max)
-                stats.max_tension = max(stats.max_tension, done.peak)
+                peak = max(peak, done.peak)
             else:
                 stats.steps += done.steps
                 raise SimulationFailed(_failure(done, h, control, problem))
@@ -135,6 +136,7 @@ def integrate_explicit(system: System, state: State, times: NDArray[np.float64],
             state.applied_to_bodies = (work.contact.body_force.copy(),
                                        work.contact.body_moment.copy())
         on_frame(float(t_end), state)
+        stats.max_tension = max(stats.max_tension, peak)
         if on_progress is not None:
             on_progress(float(t_end), h, stats)
     return stats

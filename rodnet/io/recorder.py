@@ -3,7 +3,9 @@
 Integrators hand it the time and the state; a frame function (the system's, given by the run)
 turns the state into plain arrays. The recorder keeps them, writes them to the VTK series, and
 runs the checks of a frame (the run's energy guard and the model's own), which end the run with
-:class:`rodnet.errors.SimulationFailed` (the offending frame is kept: it shows the problem).
+:class:`rodnet.errors.SimulationFailed`; the offending frame is not kept (a diverged state, whose
+positions of 1e22 m had made the summary's metrics), so a failed run's results end at its last
+good frame.
 """
 
 from __future__ import annotations
@@ -77,22 +79,21 @@ class Recorder:
         if self.only is not None and t not in self.only:
             return
         frame = self.frame_of(t, state)
-        for key in MONITORS:
-            if key in frame:
-                value = float(frame.pop(key))
-                self.monitors[key] = max(self.monitors.get(key, 0.0), value)
-                self.monitors[f"{key}_last"] = value
-                self.monitors[f"{key}_frames"] = self.monitors.get(f"{key}_frames", 0.0) + \
-                    float(value > 0.0)
-        self.time.append(t)
-        self.frames.append(frame)
-        if self.vtk is not None:
-            self.vtk.write(t, frame)
-        try:
+        monitors = {key: float(frame.pop(key)) for key in MONITORS if key in frame}
+        try:   # a frame that fails its checks (a diverged state) is not kept
             for check in self.checks:
                 check(t, frame)
         except SimulationFailed as exc:
             raise SimulationFailed(f"{exc}; {self.advice}" if self.advice else str(exc)) from None
+        for key, value in monitors.items():
+            self.monitors[key] = max(self.monitors.get(key, 0.0), value)
+            self.monitors[f"{key}_last"] = value
+            self.monitors[f"{key}_frames"] = self.monitors.get(f"{key}_frames", 0.0) + \
+                float(value > 0.0)
+        self.time.append(t)
+        self.frames.append(frame)
+        if self.vtk is not None:
+            self.vtk.write(t, frame)
 
     def arrays(self, n_nodes: int, n_elements: int) -> dict[str, NDArray[Any]]:
         """``time`` (F,) and every array of the frames stacked (F, ...), e.g. ``positions`` and

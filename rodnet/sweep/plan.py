@@ -13,7 +13,7 @@ from typing import Any, Sequence
 
 from rodnet.config import toml_key
 from rodnet.errors import SceneError
-from rodnet.scene import ARRAYS, TABLES, scene_from_toml, scene_text
+from rodnet.scene import ARRAYS, TABLES, canonical_key, scene_from_toml, scene_text
 
 
 @dataclass(frozen=True)
@@ -114,7 +114,7 @@ def plan(scene_path: str | Path, vary: Sequence[str], sets: Sequence[str] = (),
     repeated = next((k for k in keys if keys.count(k) > 1), None)
     if repeated:
         raise SceneError("--vary", repeated, "each key may be varied once")
-    fixed = {s.partition("=")[0].strip() for s in sets}
+    fixed = {canonical_key(s.partition("=")[0]) for s in sets}
     if "output.directory" in fixed | set(keys):
         raise SceneError("--vary" if "output.directory" in keys else "--set", "output.directory",
                          "is the sweep's to choose: every run writes to runs/NNNN of -o")
@@ -131,7 +131,7 @@ def plan(scene_path: str | Path, vary: Sequence[str], sets: Sequence[str] = (),
 def parse_vary(item: str) -> Vary:
     """``KEY=V1,V2,...`` or ``KEY=LOW:HIGH`` -> :class:`Vary` (:class:`SceneError` if neither)."""
     key, sep, raw = item.partition("=")
-    key = key.strip()
+    key = canonical_key(key)   # one spelling: a key varied twice is told, whatever the spelling
     if not sep or not key or not raw.strip():
         raise SceneError("--vary", item, "must look like KEY=V1,V2,... or KEY=LOW:HIGH")
     parts = _split(raw)

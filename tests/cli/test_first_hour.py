@@ -64,6 +64,29 @@ def test_validate_ends_with_a_verdict(tmp_path: Path, capsys: pytest.CaptureFixt
     assert str(tmp_path / "report" / "validation.md") in last
 
 
+@pytest.mark.parametrize("entry, key", [
+    ('metric = "max_tension"\nexpected = 1.0\nabs_tol = 1.0', "checks[0].metric"),
+    ('quantity = "metric"\nexpected = 1.0\nabs_tol = 1.0', "checks[0].name"),
+    ('quantity = "position"\nnode = "net:corner:0"\nabs_tol = 1.0', "checks[0].expected"),
+    ('quantity = "velocity"\nnode = "net:corner:0"\nexpected = 1.0', "checks[0].quantity"),
+    ('quantity = "metric"\nname = "max_tension"\nexpected = 1.0\nabs_tl = 1.0',
+     "checks[0].abs_tl"),
+])
+def test_a_malformed_check_is_bad_input_and_nothing_runs(
+        tmp_path: Path, capsys: pytest.CaptureFixture, entry: str, key: str) -> None:
+    """A ``[[checks]]`` entry with a missing, unknown or misspelt key: exit 2 naming the file,
+    the entry and the key, before any case runs (an outside check had a traceback, a check
+    counted as a failed run, a velocity read as a position and a misspelt tolerance dropped)."""
+    cases = tmp_path / "cases"
+    (cases / "c").mkdir(parents=True)
+    (cases / "c" / "scene.toml").write_text(small_net_toml(duration=0.02))
+    (cases / "c" / "expected.toml").write_text(f"[[checks]]\n{entry}\n")
+    status = main(["validate", "--cases", str(cases), "-o", str(tmp_path / "report"), "--fast"])
+    err = capsys.readouterr().err
+    assert status == 2 and f"expected.toml: {key}" in err and "Nothing was run" in err, err
+    assert "Traceback" not in err and not (tmp_path / "report").exists()
+
+
 def test_summary_of_a_lumped_run_leaves_out_the_rod_keys(tmp_path: Path) -> None:
     assert main(["run", str(_scene(tmp_path)), "-o", str(tmp_path / "o"), "--quiet"]) == 0
     scene = json.loads((tmp_path / "o" / "summary.json").read_text())["scene"]
