@@ -315,10 +315,17 @@ def _validate_command(args: argparse.Namespace) -> int:
         import subprocess
 
         print("rodnet: running the slow validation tests (pytest -m slow tests)", file=sys.stderr)
-        done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-m", "slow", "tests"],
-                              cwd=SOURCE)
-        tests = "passed" if done.returncode in (0, 5) else "FAILED"
-        status = status or (0 if tests == "passed" else EXIT_FAILED)
+        tail = ""   # pytest's last line: how many passed, failed, were skipped
+        with subprocess.Popen([sys.executable, "-m", "pytest", "-q", "-m", "slow", "tests"],
+                              cwd=SOURCE, stdout=subprocess.PIPE, text=True) as done:
+            assert done.stdout is not None
+            for line in done.stdout:   # shown as it comes: the slow tests take minutes
+                sys.stdout.write(line)
+                tail = line.strip() or tail
+        ok = done.returncode in (0, 5)
+        counts = tail.strip("= ").split(" in ")[0] if " in " in tail else ""
+        tests = ("passed" if ok else "FAILED") + (f" ({counts})" if counts else "")
+        status = status or (0 if ok else EXIT_FAILED)
         verdict += f"; slow validation tests {tests}"
     if report is not None:
         verdict += f"; HTML report in {report.write(not quick, tests)}"

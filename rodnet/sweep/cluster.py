@@ -109,6 +109,7 @@ def execute(sweep: Sweep, directory: str | Path, *, workers: int | None = None,
         raise SceneError("--workers", workers, "sizes the local cluster; with --scheduler the "
                          "workers of that cluster run the sweep")
     done = complete(sweep, directory)
+    created = not directory.exists()
     output_directory(directory, "-o (sweep folder)")
     todo = [r for r in sweep.runs if r.index not in done]
     n_local = local_workers(workers)
@@ -123,7 +124,12 @@ def execute(sweep: Sweep, directory: str | Path, *, workers: int | None = None,
     previous = _raise_on_sigterm()
     try:
         if todo:
-            client, cluster = _connect(workers, scheduler)
+            try:
+                client, cluster = _connect(workers, scheduler)
+            except SceneError:   # nothing was written: the folder goes too, as it came
+                if created and not any(directory.iterdir()):
+                    directory.rmdir()
+                raise
         start(sweep, directory)
         write_table(sweep, directory, list(rows.values()))
         if client is not None:

@@ -139,6 +139,25 @@ def test_a_folder_that_cannot_be_made_is_bad_input(tmp_path: Path,
     assert "-o (sweep folder)" in err and "cannot be created" in err and "Traceback" not in err
 
 
+def test_a_scheduler_that_does_not_answer_leaves_no_folder(
+        tmp_path: Path, capsys: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``--scheduler`` at an address where no scheduler answers (here the refusal without the
+    20 s wait): exit 2 and, as the docs say, no folder (an empty one had been left)."""
+    from rodnet.errors import SceneError
+    from rodnet.sweep import cluster
+
+    def unreachable(workers, scheduler):  # type: ignore[no-untyped-def]
+        raise SceneError("--scheduler", scheduler, "no dask scheduler answers at this address")
+
+    monkeypatch.setattr(cluster, "_connect", unreachable)
+    scene = tmp_path / "net.toml"
+    scene.write_text(small_net_toml(duration=0.3))
+    out = tmp_path / "out"
+    assert main(["sweep", str(scene), "-o", str(out), "--scheduler", "tcp://127.0.0.1:9",
+                 "--vary", "net.launch_speed=8,10"]) == EXIT_BAD_INPUT
+    assert "no dask scheduler answers" in capsys.readouterr().err and not out.exists()
+
+
 def test_an_exception_in_a_worker_is_a_row(swept, tmp_path: Path,
                                            capsys: pytest.CaptureFixture) -> None:
     """A run folder replaced by a file: the worker's task raises on it; the other runs stay."""
