@@ -91,3 +91,20 @@ def test_a_reader_that_goes_away_leaves_the_runs_status(tmp_path: Path) -> None:
     os.close(write)
     assert done.returncode == 0
     assert json.loads((tmp_path / "out" / "summary.json").read_text())["status"] == "ok"
+
+
+@pytest.mark.parametrize("delay", [0.2, 0.5])
+def test_ctrl_c_while_loading_ends_with_a_line(tmp_path: Path, delay: float) -> None:
+    """Ctrl-C in the first second, while numpy, scipy and numba load (or, on a fast machine,
+    just after): exit status 130 and a line, not the 46-line traceback of an import (outside
+    check). (Before the interpreter itself has started, SIGINT ends it as any process.)"""
+    process, out, log = _start(tmp_path, duration=300.0, integrator="explicit")
+    try:
+        time.sleep(delay)
+        process.send_signal(signal.SIGINT)
+        assert process.wait(timeout=60) == 130
+    finally:
+        if process.poll() is None:
+            process.kill()
+    err = log.read_text()
+    assert "Traceback" not in err and "interrupted" in err, err
