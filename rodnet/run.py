@@ -539,13 +539,17 @@ def _stability_advice(p: Prepared) -> str:
 def _inertias(p: Prepared) -> dict[str, NDArray[np.float64]]:
     """The masses the run moves: ``node_mass`` (N,) [kg] and, for rod sections,
     ``rotation_node_inertia`` (R, 3) [kg m^2] in each rotation node's material frame (explicit
-    runs: as raised by C49), so that momenta can be summed from the frames; with bodies their
+    runs: as raised by C49), so that momenta can be summed from the frames, and the rotation
+    node of each element end ``element_rotation_nodes`` (E, 2); with bodies their
     ``body_mass`` (B,) [kg] and ``body_inertia`` (B, 3, 3) [kg m^2] about the centre of mass in
     body axes (nan for a fixed body without a mass)."""
     out = {"node_mass": np.asarray(p.mass, dtype=float)}
     inertia = getattr(p.model, "rotary_inertia", None)
     if inertia is not None and len(inertia):
         out["rotation_node_inertia"] = np.asarray(inertia, dtype=float)
+        # which rows of the rotation-node arrays each element's ends take (their order is not
+        # the nodes': a pinned knot has one per thread end, a corner mass follows its thread)
+        out["element_rotation_nodes"] = np.asarray(p.model.rot_nodes, dtype=np.int64)
     contact = p.system.contact
     if contact is not None:
         out["body_mass"] = np.asarray(contact.bodies.mass, dtype=float)

@@ -117,3 +117,26 @@ def test_the_penalty_springs_energy_closes_the_balance_of_a_bounce(tmp_path: Pat
     moving = a["kinetic_energy"].max()
     assert np.abs(total + a["contact_energy"] - total[0]).max() < 1e-3 * moving
     assert np.abs(total - total[0]).max() > 0.1 * moving   # the springs hold a real part
+
+
+@pytest.mark.parametrize("knots", ["rigid", "pinned"])
+def test_element_rotation_nodes_map_the_rotation_node_arrays(tmp_path: Path, knots: str) -> None:
+    """``element_rotation_nodes`` (E, 2) says which rows of ``rotation_node_quaternions`` an
+    element's ends take: with rigid knots, one rotation node per node, those rows are the
+    ``rotations`` of the element's end nodes (``segments``); with pinned knots every thread end
+    at a knot has its own. (Without the map an outside check's curvatures recomputed from the
+    rotation-node rows were off by 3.3 1/m: their order is not the nodes'.)"""
+    from tests.conftest import small_net_toml
+
+    text = small_net_toml(duration=0.02, integrator="bdf2", n=2)
+    r = run(scene_from_toml(text, ["model.type=cosserat", f"model.knots={knots}"]), tmp_path,
+            progress=False)
+    assert r.status == "ok", r.message
+    a = r.arrays
+    ends, quats = a["element_rotation_nodes"], a["rotation_node_quaternions"]
+    assert ends.shape == a["segments"].shape and ends.max() == quats.shape[1] - 1
+    assert len(np.unique(ends)) == quats.shape[1]          # every rotation node is some end
+    if knots == "rigid":
+        assert np.abs(quats[:, ends] - a["rotations"][:, a["segments"]]).max() == 0.0
+    else:   # a pinned knot's thread ends turn on their own: more rotation nodes than nodes
+        assert quats.shape[1] > a["positions"].shape[1]
