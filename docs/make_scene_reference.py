@@ -244,8 +244,7 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
     "rods.points": (
         "m", "Polyline of the stress-free centreline, at least two points, consecutive points "
         "at least 1e-9 m apart, within 1e9 m of the origin, never turning straight back (its "
-        "members would overlap), not ending where it starts (a rod is open: a closed ring "
-        "cannot be built). The rod starts in this shape, free of stress."),
+        "members would overlap). The rod starts in this shape, free of stress."),
     "rods.elements": (
         "", "Elements along the whole rod, at least one per polyline segment; spread by arc "
         "length, every polyline vertex kept as a node."),

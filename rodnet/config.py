@@ -303,9 +303,6 @@ class RodSpec:
                     "consecutive points must differ (zero-length segment)")
             require(math.dist(a, b) >= 1e-9, "points", self.points,
                     "consecutive points must be at least 1e-9 m apart (a unit written wrongly?)")
-        require(len(self.points) == 2 or math.dist(self.points[0], self.points[-1]) >= 1e-9,
-                "points", self.points, "end where they start: a rod is open, so its two ends would "
-                "be two nodes at one place, not joined (a closed ring cannot be built)")
         for i, (a, b, c) in enumerate(zip(self.points[:-2], self.points[1:-1], self.points[2:])):
             u = [q - p for p, q in zip(a, b)]
             w = [q - p for p, q in zip(b, c)]
