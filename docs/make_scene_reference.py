@@ -244,7 +244,9 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
     "rods.points": (
         "m", "Polyline of the stress-free centreline, at least two points, consecutive points "
         "at least 1e-9 m apart, within 1e9 m of the origin, never turning straight back (its "
-        "members would overlap). The rod starts in this shape, free of stress."),
+        "members would overlap). The rod starts in this shape, free of stress. A rod is open: a "
+        "polyline back to its first point gives a split ring (two end nodes at one place, not "
+        "joined; the run warns), and a closed ring cannot be posed."),
     "rods.elements": (
         "", "Elements along the whole rod, at least one per polyline segment; spread by arc "
         "length, every polyline vertex kept as a node."),
