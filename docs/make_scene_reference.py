@@ -421,7 +421,10 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
     "initial.velocities": (
         "-, m/s", "`[[node, vx, vy, vz], ...]`: initial velocities of the named nodes (node "
         "selectors as in `[[supports]]`), replacing what the net, the rod or `[[masses]]` set; "
-        "rods and nets. Not with `from` (the saved frame gives every velocity)."),
+        "rods and nets. Not with `from` (the saved frame gives every velocity). Only nodes "
+        "with a selector can be set: the inner nodes of a net's threads "
+        "(`model.elements_per_thread` > 1) have none, so a net of several elements per thread "
+        "cannot be given a uniform velocity here (a boost: `[[rods]]` take `velocity`)."),
     # [output]
     "output.directory": (
         "", "Output directory, relative to the working directory; `-o DIR` on the command line "
