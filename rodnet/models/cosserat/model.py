@@ -270,9 +270,10 @@ class CosseratModel:
         return g, [K_el, load_block], [C_el, d_gyro]
 
     def _secant_shift(self, q: Configuration, rate: StepRate) -> FloatArray:
-        """(E, 6) ``(e_0 + e_1) / 2 - e(q)`` (the axial part of the tension-only law at its
-        secant strain, :func:`~rodnet.kernels.tension.secant_strain`) for the midpoint ``q = q_0 o exp(dq / 2)`` of a step
-        from ``rate.start`` (strains ``rate.reference``) to ``q_1 = q o exp(dq / 2)`` (C56)."""
+        """(E, 6) ``(e_0 + e_1) / 2 - e(q)`` for the midpoint ``q = q_0 o exp(dq / 2)`` of a
+        step from ``rate.start`` (strains ``rate.reference``) to ``q_1 = q o exp(dq / 2)``, the
+        axial part of the tension-only law at its secant strain
+        (:func:`~rodnet.kernels.tension.secant_strain`) (C56)."""
         start = rate.start
         assert start is not None
         half = so3.quat_multiply(so3.quat_conjugate(start.quat), q.quat)
