@@ -380,7 +380,8 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
         "Enters the explicit stability limit."),
     "contact.friction": (
         "-", "Coulomb coefficient `mu` >= 0 of velocity-regularised friction "
-        "`f_T = -mu N v_T / sqrt(|v_T|^2 + slip_velocity^2)` (F2); 0: frictionless."),
+        "`f_T = -mu N v_T / sqrt(|v_T|^2 + slip_velocity^2)` (F2); 0: frictionless. Static runs "
+        "have no friction (it acts on velocities): see [contact](contact.md)."),
     "contact.smoothing": (
         "m", ">= 0. Half-width `s` of the C1 blend of the normal law around first touch (N1): "
         "the force starts at a gap `s` and is exactly `k delta` beyond `delta = s`. About a "

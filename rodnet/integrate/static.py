@@ -132,7 +132,7 @@ def _stable(solve: _Solve, q: Configuration, load: float) -> Configuration:
     load step's check replaces the last one's)."""
     system, stats = solve.system, solve.stats
     stats.extra.pop("unstable", None)
-    direction = negative_curvature(system, q, load) if _has_potential(system, q, load) else None
+    direction = negative_curvature(system, q, load) if _judged(system, q, load) else None
     if direction is None:
         return q
     free = system.free
@@ -255,7 +255,16 @@ def _relaxed(solve: _Solve, q: Configuration, load: float) -> tuple[Configuratio
 
 
 def _has_potential(system: System, q: Configuration, load: float) -> bool:
-    return bool(system.potential_exact) and system.potential(q, STATIC_TIME, load) is not None
+    """Whether the static forces have a potential (:meth:`System.static_potential`: with
+    contact against fixed bodies too, whose penalty springs have one)."""
+    return system.static_potential(q, STATIC_TIME, load) is not None
+
+
+def _judged(system: System, q: Configuration, load: float) -> bool:
+    """Whether an equilibrium's stability is judged by its tangent: where the forces have a
+    potential and no contact (a thread resting on a body has directions it can slide along
+    without stiffness, which the check would kick it along again and again)."""
+    return getattr(system, "contact", None) is None and _has_potential(system, q, load)
 
 
 def unstable(system: System, q: Configuration, load: float) -> bool:
@@ -264,7 +273,7 @@ def unstable(system: System, q: Configuration, load: float) -> bool:
     readily as to a minimum (:func:`negative_curvature`). False where the forces have no
     potential (dead moments, contact): stability is then not a property of the tangent's
     symmetric part."""
-    return _has_potential(system, q, load) and negative_curvature(system, q, load) is not None
+    return _judged(system, q, load) and negative_curvature(system, q, load) is not None
 
 
 def negative_curvature(system: System, q: Configuration, load: float) -> FloatArray | None:
@@ -434,7 +443,7 @@ def _static_increment(system: System, q_start: Configuration, load: float, optio
     if _has_potential(system, q_start, load):
         def merit(u: FloatArray) -> float:
             held = 0.0 if inertia is None else 0.5 * float(np.dot(inertia * u, u))
-            return system.potential(moved(u), STATIC_TIME, load) + held  # type: ignore[operator]
+            return system.static_potential(moved(u), STATIC_TIME, load) + held  # type: ignore[operator]
 
     problem = NewtonProblem(evaluate, shorten, small, merit, weights, rebase,
                             metric=system.dof_mass[free], length=system.length_scale,

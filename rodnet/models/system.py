@@ -357,6 +357,18 @@ class ThreadSystem:
         """Whether ``g`` with a step rate is exactly the gradient of :meth:`potential`."""
         return self.contact is None and bool(getattr(self.model, "potential_exact", False))
 
+    def static_potential(self, q: Configuration, t: float, load_factor: float) -> float | None:
+        """The potential whose gradient is a static run's ``g`` (no velocities, so no damping
+        and no friction): the model's (:meth:`potential`) plus the energy in the contact's
+        penalty springs against fixed bodies (N4) [J]; None where there is none (dead moments,
+        a model without one, bodies that move)."""
+        if not bool(getattr(self.model, "potential_exact", False)) or self.n_moving:
+            return None
+        stored = self.potential(q, t, load_factor)
+        if stored is None or self.contact is None:
+            return stored
+        return stored + self.contact.energy(q.x, self._start)["contact"]  # type: ignore[arg-type]
+
     @property
     def secant_forces(self) -> bool:
         """Whether the model takes the midpoint rule's secant form (the contact term does not:
