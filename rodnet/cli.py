@@ -394,7 +394,7 @@ def _validate(cases: Path, output: Path, quick: bool, report_dir: Path | None
     verdict = (f"{passed} of {len(results)} checks passed in {len(folders)} cases"
                + (f", {len(failed_runs)} runs failed" if failed_runs else "")
                + (f", {len(every) - len(folders)} slow cases not run"
-                  if builder and len(every) > len(folders) else "")
+                  if len(every) > len(folders) else "")
                + f"; report in {output / 'validation.md'}")
     return (0 if ok else EXIT_FAILED), verdict, builder
 

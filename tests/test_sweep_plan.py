@@ -83,6 +83,7 @@ def test_latin_hypercube_times_the_grid(scene: Path) -> None:
     # the first's labels, and dropped a --set so spelt; outside check)
     (["materials[0].viscosity=1e6,2e6", "materials.0.viscosity=5e6"], [], None, "--vary"),
     (["materials[0].viscosity=1e6,2e6"], ["materials.0.viscosity=5e6"], None, "--set"),
+    (["net.launch_speed=15,15.0"], [], None, "--vary"),   # the same run twice (outside check)
     (["net.launch_speeed=5,9"], [], None, "net.launch_speeed"),
     (["simulation.integrator=explicit,leapfrog"], [], None, "simulation.integrator"),
 ])

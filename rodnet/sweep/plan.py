@@ -142,6 +142,10 @@ def parse_vary(item: str) -> Vary:
         return Vary(key, low=float(low), high=float(high), integer=_takes_integers(key))
     if any(not p for p in parts):
         raise SceneError("--vary", item, "has an empty value: V1,V2,... separated by commas")
+    values = [_value(p) for p in parts]
+    repeated = next((p for i, p in enumerate(parts) if values[i] in values[:i]), None)
+    if repeated is not None:   # the same run twice (15 and 15.0 alike)
+        raise SceneError("--vary", item, f"gives the value {repeated} twice: each value once")
     return Vary(key, values=tuple(parts))
 
 

@@ -64,6 +64,22 @@ def test_validate_ends_with_a_verdict(tmp_path: Path, capsys: pytest.CaptureFixt
     assert str(tmp_path / "report" / "validation.md") in last
 
 
+def test_fast_says_how_many_slow_cases_it_left_out(tmp_path: Path,
+                                                   capsys: pytest.CaptureFixture) -> None:
+    """``--fast`` without ``--report`` leaves the slow cases out, and the verdict says so (it
+    had said nothing: outside check)."""
+    cases = tmp_path / "cases"
+    check = '[[checks]]\nquantity = "metric"\nname = "max_mouth_area"\nexpected = 0.0\n' \
+        'abs_tol = 1e3\n'
+    for name, slow in (("quick", "false"), ("long", "true")):
+        (cases / name).mkdir(parents=True)
+        (cases / name / "scene.toml").write_text(small_net_toml(duration=0.02))
+        (cases / name / "expected.toml").write_text(f"slow = {slow}\n{check}")
+    status = main(["validate", "--cases", str(cases), "-o", str(tmp_path / "report"), "--fast"])
+    last = capsys.readouterr().out.strip().splitlines()[-1]
+    assert status == 0 and "1 of 1 checks passed in 1 cases, 1 slow cases not run" in last, last
+
+
 @pytest.mark.parametrize("entry, key", [
     ('metric = "max_tension"\nexpected = 1.0\nabs_tol = 1.0', "checks[0].metric"),
     ('quantity = "metric"\nexpected = 1.0\nabs_tol = 1.0', "checks[0].name"),
