@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from rodnet.errors import SceneError
-from rodnet.sweep.plan import Run, Sweep
+from rodnet.sweep.plan import Run, Sweep, by_value
 
 FINAL = ("ok", "failed")
 """Statuses of a complete run (``"interrupted"`` runs again)."""
@@ -60,7 +60,14 @@ def _identity(definition: Any) -> dict[str, Any]:
         return {}
     out = {k: definition.get(k) for k in ("scene", "vary", "set", "samples", "seed", "runs")}
     out["scene"] = out["scene"].get("text") if isinstance(out["scene"], dict) else None
+    # options by key and value, not text: --set simulation.duration=3 resumes a sweep of 3.0
+    out["vary"] = by_value(out["vary"], split=True)
+    out["set"] = by_value(out["set"], split=False)
+    if isinstance(out["runs"], list):
+        out["runs"] = [{**r, "overrides": by_value(r.get("overrides"), split=False)}
+                       if isinstance(r, dict) else r for r in out["runs"]]
     return out
+
 
 
 def _read_summary(path: Path) -> dict[str, Any]:

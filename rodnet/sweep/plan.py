@@ -149,6 +149,19 @@ def parse_vary(item: str) -> Vary:
     return Vary(key, values=tuple(parts))
 
 
+def by_value(items: Any, split: bool) -> Any:
+    """``KEY=VALUE`` options (``--vary``: ``KEY=V1,V2,...``) as ``[key, values]`` with the key in
+    one spelling and the values as ``--set`` reads them; anything else as it is."""
+    if not isinstance(items, list) or not all(isinstance(i, str) for i in items):
+        return items
+    out = []
+    for item in items:
+        key, _, raw = item.partition("=")
+        parts = _split(raw) if split else [raw]
+        out.append([canonical_key(key), [_value(part) for part in parts]])
+    return out
+
+
 def _split(raw: str) -> list[str]:
     """``raw`` split at the commas outside brackets, braces and quotes, each part stripped."""
     parts, depth, quote, start = [], 0, "", 0

@@ -104,6 +104,12 @@ def test_a_second_call_runs_nothing_and_another_sweep_is_refused(
     assert "6 complete, 0 to run" in err
     assert [p.stat().st_mtime_ns for p in summaries] == before and len(summaries) == 6
     assert [r["status"] for r in _table(out)].count("ok") == 3
+    # the same options spelt otherwise (a value 0.05 as 5e-2, 8 as 8.0) resume it too; they had
+    # been taken for another sweep (outside check)
+    respelt = [a.replace("simulation.dt=0.05", "simulation.dt=5e-2").replace("=8,", "=8.0,")
+               for a in _args(scene, out)]
+    assert respelt != _args(scene, out) and main(respelt) == EXIT_FAILED
+    assert "6 complete, 0 to run" in capsys.readouterr().err
     other = [VARY[0], "net.launch_speed=8,10,14"]
     assert main(_args(scene, out, other)) == EXIT_BAD_INPUT
     err = capsys.readouterr().err
