@@ -25,7 +25,7 @@ def test_errors_against_the_reference() -> None:
     e = errors(run, ref)
     assert e["max_mouth_area"] == pytest.approx(0.01)
     assert e["time_of_max"] == pytest.approx(0.02)
-    assert e["distance_at_max"] == pytest.approx(0.5)
+    assert e["distance_at_max"] == pytest.approx(-0.5)   # signed, as the README's table
     assert e["com_path"] == pytest.approx(0.3)
     failed = errors(_record(0, 0, 0, [], status="failed"), ref)
     assert all(np.isnan(v) for v in failed.values())

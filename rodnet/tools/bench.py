@@ -325,7 +325,8 @@ class _Readers:
 
 def errors(record: dict[str, Any], reference: dict[str, Any]) -> dict[str, float]:
     """The four error measures of a run against its family's reference (nan when either run
-    did not complete)."""
+    did not complete): the first three signed (the run's value less the reference's, the area
+    relative to it), the centre-of-mass path's the largest distance."""
     nan = {"max_mouth_area": math.nan, "time_of_max": math.nan, "distance_at_max": math.nan,
            "com_path": math.nan}
     if record["summary"].get("status") != "ok" or reference["summary"].get("status") != "ok":
@@ -335,9 +336,9 @@ def errors(record: dict[str, Any], reference: dict[str, Any]) -> dict[str, float
         return nan
     d, d_ref = np.asarray(record["series"]["distance"]), np.asarray(reference["series"]["distance"])
     k = min(len(d), len(d_ref))
-    return {"max_mouth_area": abs(m["max_mouth_area"] / r["max_mouth_area"] - 1.0),
-            "time_of_max": abs(m["time_of_max_mouth_area"] - r["time_of_max_mouth_area"]),
-            "distance_at_max": abs(m["distance_at_max_mouth_area"] - r["distance_at_max_mouth_area"]),
+    return {"max_mouth_area": m["max_mouth_area"] / r["max_mouth_area"] - 1.0,
+            "time_of_max": m["time_of_max_mouth_area"] - r["time_of_max_mouth_area"],
+            "distance_at_max": m["distance_at_max_mouth_area"] - r["distance_at_max_mouth_area"],
             "com_path": float(np.max(np.abs(d[:k] - d_ref[:k]), initial=0.0))}
 
 
@@ -696,7 +697,7 @@ def _plot(study: Study, records: dict[str, dict[str, Any]], path: Path) -> None:
         ref = records.get(study.references.get(run.family, ""))
         if ref is None or run.twin or run.label == study.references.get(run.family):
             continue
-        e = errors(rec, ref)["max_mouth_area"]
+        e = abs(errors(rec, ref)["max_mouth_area"])   # a log scale: the size
         if np.isfinite(e) and e > 0:
             curves.setdefault(run.curve, []).append((100 * e, rec["process_wall_s"]))
     for curve, points in curves.items():
