@@ -187,7 +187,7 @@ def test_sigterm_keeps_the_finished_runs(tmp_path: Path) -> None:
     scene.write_text(small_net_toml(duration=0.3))
     out = tmp_path / "out"
     process = subprocess.Popen([sys.executable, "-m", "rodnet", "sweep", str(scene), "-o", str(out),
-                                "--vary", "simulation.duration=0.1,3600,3600", "--workers", "2"],
+                                "--vary", "simulation.duration=0.1,3600,3601", "--workers", "2"],
                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
                                cwd=tmp_path, env={**os.environ, "PYTHONPATH": str(ROOT)})
     try:
