@@ -63,11 +63,17 @@ def scene_from_toml(text: str, overrides: typing.Sequence[str] = (), source: str
     return scene_from_dict(apply_overrides(data, overrides), source=source)
 
 
+def key_parts(key: str) -> list[str]:
+    """The names and indexes of a scene key as ``--set`` reads it: ``materials.0.viscosity``
+    and ``materials[0].viscosity`` both give ``["materials", "0", "viscosity"]``."""
+    return key.strip().replace("[", ".").replace("]", "").split(".")
+
+
 def canonical_key(key: str) -> str:
-    """A scene key in one spelling: ``materials.0.viscosity`` and ``materials[0].viscosity``
-    (both of which ``--set`` takes) as the second."""
+    """A scene key in one spelling (:func:`key_parts`): ``materials.0.viscosity`` as
+    ``materials[0].viscosity``."""
     out = ""
-    for part in key.strip().replace("[", ".").replace("]", "").split("."):
+    for part in key_parts(key):
         out += (f"[{part}]" if part.isdigit() else f".{part}") if out else part
     return out
 
@@ -81,7 +87,7 @@ def apply_overrides(data: dict[str, Any], overrides: typing.Sequence[str]) -> di
         key, sep, raw = item.partition("=")
         if not sep or not key.strip():
             raise SceneError("--set", item, "must look like section.key=value")
-        parts = key.strip().replace("[", ".").replace("]", "").split(".")
+        parts = key_parts(key)
         try:
             value = tomllib.loads(f"v = {raw}")["v"]
         except tomllib.TOMLDecodeError:

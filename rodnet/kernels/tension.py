@@ -162,12 +162,9 @@ def secant_strain(start: FloatArray, end: FloatArray, kink_strain: float) -> Flo
     energy. The mean strain where the change is below :data:`SECANT_SMALL` or a strain lies
     below ``e = -1`` (C51); at or below zero where the secant is zero (slack all the step)."""
     mean = 0.5 * (start + end)
-    change = end - start
-    usable = (np.abs(change) > SECANT_SMALL) & (np.minimum(start, end) > -1.0)
-    safe = np.where(usable, change, 1.0)
-    one = np.ones_like(mean)
-    secant = (axial_energy(end, one, one, kink_strain, True)
-              - axial_energy(start, one, one, kink_strain, True)) / safe
+    usable = (np.abs(end - start) > SECANT_SMALL) & (np.minimum(start, end) > -1.0)
+    secant, _ = secant_axial_force(start, end, np.ones_like(mean), np.zeros_like(mean),
+                                   kink_strain, True, 0.0)   # r's secant: EA 1, no damping
     d = kink_strain
     inverse = np.where(secant <= 0.0, np.minimum(mean, 0.0),
                        np.where(secant < 0.5 * d, np.sqrt(2.0 * d * np.maximum(secant, 0.0)),
