@@ -68,7 +68,7 @@ def solve_static(system: System, state: State, load_steps: int, options: NewtonO
                     continue
                 # Newton cannot reach the equilibrium of the increment (a mechanism that must
                 # turn far): relax to it from the last one
-                q_new, found = _relaxed(solve, q, target)
+                q_new, found = _relaxed(solve, q, target, grow=True)
                 if not found:
                     raise SimulationFailed(f"no static equilibrium found at load factor "
                                            f"{trial:.4g}: {result.message}; relaxing from the "
@@ -98,6 +98,10 @@ RELAX_STEPS = 100
 RELAX_EASY, RELAX_EASY_ITERATIONS = 0.25, 4
 """A pseudo-time step solved within this many Newton iterations lowers ``c`` by this factor
 besides the residual's ratio (the next step four times as free, twice as long in time)."""
+
+RELAX_STANDING, RELAX_GROW = 0.9, 0.5
+"""In :func:`_relaxed` with ``grow``: a step after which the residual stands above this fraction
+of the last one's lowers ``c`` by this factor instead of the residual's ratio."""
 
 
 @dataclass
@@ -209,7 +213,8 @@ def _watch_jump(system: System, q: Configuration, q_new: Configuration, lam: flo
     return now
 
 
-def _relaxed(solve: _Solve, q: Configuration, load: float) -> tuple[Configuration, bool]:
+def _relaxed(solve: _Solve, q: Configuration, load: float, grow: bool = False
+             ) -> tuple[Configuration, bool]:
     """The equilibrium at ``load`` reached from ``q`` by pseudo-transient continuation (Kelley
     and Keyes 1998, "Convergence analysis of pseudo-transient continuation", SIAM J. Numer.
     Anal. 35): Newton solves of ``g(q) + c M u = 0``, ``u`` the move of the step and ``M`` the
@@ -218,8 +223,14 @@ def _relaxed(solve: _Solve, q: Configuration, load: float) -> tuple[Configuratio
     falls (``c_{k+1} = c_k |r_{k+1}| / |r_k|``, switched evolution relaxation, and by
     :data:`RELAX_EASY` more after an easy step) and raised fourfold where a step's solve
     fails, until the residual of ``g(q) = 0`` is within Newton's tolerance, or a step moves the
-    structure by less than Newton's ``xtol`` and Newton's method from there converges. Returns
-    the configuration reached and whether it is the equilibrium."""
+    structure by less than Newton's ``xtol`` and Newton's method from there converges. With
+    ``grow`` (a load step Newton could not reach) a step after which the residual stands
+    (:data:`RELAX_STANDING`) lowers ``c`` by :data:`RELAX_GROW`: a mechanism swinging far under
+    its load (a cable on one pin turning a quarter turn) keeps nearly the same residual all the
+    way, and the residual's ratio alone left its steps at a few millimetres. Without it (leaving
+    an unstable equilibrium, :func:`_stable`) the steps stay short, so that the flow follows the
+    negative curvature away from the saddle instead of jumping to a nearby one. Returns the
+    configuration reached and whether it is the equilibrium."""
     system, options = solve.system, solve.options
     free, zero = system.free, np.zeros(system.n_dof)
     mass = np.maximum(system.dof_mass[free], 1e-300)
@@ -249,7 +260,12 @@ def _relaxed(solve: _Solve, q: Configuration, load: float) -> tuple[Configuratio
                 return final, True
         ratio = float(np.linalg.norm(r_next)) / max(float(np.linalg.norm(r)), 1e-300)
         # an easy step lengthens the next pseudo-time step too
-        c *= min(ratio, 4.0) * (RELAX_EASY if result.iterations <= RELAX_EASY_ITERATIONS else 1.0)
+        if result.iterations <= RELAX_EASY_ITERATIONS:
+            c *= min(ratio, 4.0) * RELAX_EASY
+        elif grow and ratio > RELAX_STANDING:
+            c *= RELAX_GROW
+        else:
+            c *= min(ratio, 4.0)
         q, r = moved, r_next
     return q, bool(float(np.abs(r).max(initial=0.0)) <= tol)
 
