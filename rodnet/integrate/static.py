@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -68,7 +68,7 @@ def solve_static(system: System, state: State, load_steps: int, options: NewtonO
                     continue
                 # Newton cannot reach the equilibrium of the increment (a mechanism that must
                 # turn far): relax to it from the last one
-                q_new, found = _relaxed(solve, q, target, grow=True)
+                q_new, found = _relaxed(solve, q, target, far=True)
                 if not found:
                     raise SimulationFailed(f"no static equilibrium found at load factor "
                                            f"{trial:.4g}: {result.message}; relaxing from the "
@@ -99,8 +99,12 @@ RELAX_EASY, RELAX_EASY_ITERATIONS = 0.25, 4
 """A pseudo-time step solved within this many Newton iterations lowers ``c`` by this factor
 besides the residual's ratio (the next step four times as free, twice as long in time)."""
 
+RELAX_INEXACT = 0.1
+"""A pseudo-time step of :func:`_relaxed` with ``far`` is solved to this fraction of the
+residual it starts from (or Newton's tolerance, where that is larger)."""
+
 RELAX_STANDING, RELAX_GROW = 0.9, 0.5
-"""In :func:`_relaxed` with ``grow``: a step after which the residual stands above this fraction
+"""In :func:`_relaxed` with ``far``: a step after which the residual stands above this fraction
 of the last one's lowers ``c`` by this factor instead of the residual's ratio."""
 
 
@@ -116,10 +120,13 @@ class _Solve:
     stats: StepStats
     history: list[float] | None
 
-    def increment(self, q: Configuration, load: float, inertia: FloatArray | None = None
-                  ) -> tuple[Configuration, NewtonResult]:
-        """:func:`_static_increment` from ``q`` at ``load``, counted in :attr:`stats`."""
-        moved, result = _static_increment(self.system, q, load, self.options, self.solver,
+    def increment(self, q: Configuration, load: float, inertia: FloatArray | None = None,
+                  tolerance: float | None = None) -> tuple[Configuration, NewtonResult]:
+        """:func:`_static_increment` from ``q`` at ``load``, counted in :attr:`stats`; with
+        ``tolerance`` [N] solved to that residual instead of Newton's own."""
+        options = self.options if tolerance is None else \
+            replace(self.options, rtol=tolerance / self.scale, atol=0.0)
+        moved, result = _static_increment(self.system, q, load, options, self.solver,
                                           self.scale, self.history, inertia)
         self.stats.newton_iterations += result.iterations
         self.stats.factorizations += result.factorizations
@@ -131,8 +138,9 @@ def _stable(solve: _Solve, q: Configuration, load: float) -> Configuration:
     equilibrium relaxed to from ``q`` moved along its direction of negative curvature by
     :data:`UNSTABLE_KICK` of the size: the move lowers the potential below the saddle's (to
     second order: the force is zero there and the curvature negative along the move) and the
-    relaxation lowers it at every step, so it cannot return there. Where that fails or
-    ends unstable too, ``q`` is kept and ``stats.extra["unstable"]`` set (the run warns; each
+    relaxation lowers it at every step, so it cannot return there (short exact steps first,
+    then, where they fail or end unstable, those of a far equilibrium: :func:`_relaxed`).
+    Where that fails or ends unstable too, ``q`` is kept and ``stats.extra["unstable"]`` set (the run warns; each
     load step's check replaces the last one's)."""
     system, stats = solve.system, solve.stats
     stats.extra.pop("unstable", None)
@@ -147,9 +155,10 @@ def _stable(solve: _Solve, q: Configuration, load: float) -> Configuration:
                solve.options.max_rotation / turn if turn else np.inf)
     dq = np.zeros(system.n_dof)
     dq[free] = size * direction
-    relaxed, found = _relaxed(solve, system.retract(q, dq), load)
-    if found and negative_curvature(system, relaxed, load) is None:
-        return relaxed
+    for far in (False, True):
+        relaxed, found = _relaxed(solve, system.retract(q, dq), load, far)
+        if found and negative_curvature(system, relaxed, load) is None:
+            return relaxed
     stats.extra["unstable"] = 1.0
     return q
 
@@ -213,7 +222,7 @@ def _watch_jump(system: System, q: Configuration, q_new: Configuration, lam: flo
     return now
 
 
-def _relaxed(solve: _Solve, q: Configuration, load: float, grow: bool = False
+def _relaxed(solve: _Solve, q: Configuration, load: float, far: bool = False
              ) -> tuple[Configuration, bool]:
     """The equilibrium at ``load`` reached from ``q`` by pseudo-transient continuation (Kelley
     and Keyes 1998, "Convergence analysis of pseudo-transient continuation", SIAM J. Numer.
@@ -224,11 +233,16 @@ def _relaxed(solve: _Solve, q: Configuration, load: float, grow: bool = False
     :data:`RELAX_EASY` more after an easy step) and raised fourfold where a step's solve
     fails, until the residual of ``g(q) = 0`` is within Newton's tolerance, or a step moves the
     structure by less than Newton's ``xtol`` and Newton's method from there converges. With
-    ``grow`` (a load step Newton could not reach) a step after which the residual stands
-    (:data:`RELAX_STANDING`) lowers ``c`` by :data:`RELAX_GROW`: a mechanism swinging far under
-    its load (a cable on one pin turning a quarter turn) keeps nearly the same residual all the
-    way, and the residual's ratio alone left its steps at a few millimetres. Without it (leaving
-    an unstable equilibrium, :func:`_stable`) the steps stay short, so that the flow follows the
+    ``far`` (an equilibrium that may lie far away: a load step Newton could not reach) a step
+    after which the residual stands (:data:`RELAX_STANDING`) lowers ``c`` by
+    :data:`RELAX_GROW`, and each step is solved only to :data:`RELAX_INEXACT` of the residual
+    it starts from: a mechanism swinging far under its load (a cable on one pin turning a
+    quarter turn) keeps nearly the same residual all the way, and the residual's ratio alone
+    left its steps at a few millimetres; and the steps of a cable turning over with a heavy end
+    mass stalled in Newton's method at a residual far below the one they started from
+    (the tension-only kink), when the pseudo-time path needs no exact step (Kelley and Keyes
+    take one Newton iteration per step). Without ``far`` (leaving an unstable equilibrium,
+    :func:`_stable`, first) the steps stay short and exact, so that the flow follows the
     negative curvature away from the saddle instead of jumping to a nearby one. Returns the
     configuration reached and whether it is the equilibrium."""
     system, options = solve.system, solve.options
@@ -247,7 +261,8 @@ def _relaxed(solve: _Solve, q: Configuration, load: float, grow: bool = False
     for _ in range(RELAX_STEPS):
         if float(np.abs(r).max(initial=0.0)) <= tol or c == 0.0:
             return q, True
-        moved, result = solve.increment(q, load, inertia=c * mass)
+        loose = max(tol, RELAX_INEXACT * float(np.abs(r).max(initial=0.0))) if far else None
+        moved, result = solve.increment(q, load, inertia=c * mass, tolerance=loose)
         if not result.converged:
             c *= 4.0
             continue
@@ -262,7 +277,7 @@ def _relaxed(solve: _Solve, q: Configuration, load: float, grow: bool = False
         # an easy step lengthens the next pseudo-time step too
         if result.iterations <= RELAX_EASY_ITERATIONS:
             c *= min(ratio, 4.0) * RELAX_EASY
-        elif grow and ratio > RELAX_STANDING:
+        elif far and ratio > RELAX_STANDING:
             c *= RELAX_GROW
         else:
             c *= min(ratio, 4.0)

@@ -848,6 +848,49 @@ def test_a_horizontal_cable_on_one_pin_swings_down_to_hang(tmp_path: Path, axial
     assert not any("unstable" in warning for warning in summary["warnings"])
 
 
+def _u_shaped_cable(axial: str, steps: int) -> str:
+    """The cable of :data:`HORIZONTAL_CABLE` bent into a U (two 0.3 m legs hanging from a half
+    circle of radius 0.1013 m, 62 segments), pinned at the foot of one leg, a 1 kg mass at the
+    foot of the other."""
+    arc = np.pi * np.linspace(1.0, 0.0, 31)
+    points = ([[-0.1013, 0.0, z] for z in np.linspace(-0.3, 0.0, 16)[:-1]]
+              + [[0.1013 * np.cos(a), 0.0, 0.1013 * np.sin(a)] for a in arc]
+              + [[0.1013, 0.0, z] for z in np.linspace(0.0, -0.3, 16)[1:]])
+    text = HORIZONTAL_CABLE.format(axial=axial, steps=steps)
+    rows = ", ".join(f"[{x:.6f}, {y:.6f}, {z:.6f}]" for x, y, z in points)
+    text = text.replace("points = [[0, 0, 0], [1, 0, 0]]", f"points = [{rows}]")
+    text = text.replace("elements = 20", f"elements = {len(points) - 1}")
+    return text + '[[masses]]\nnode = "cab:end"\nmass = 1.0\n'
+
+
+@pytest.mark.parametrize("axial, steps", [("tension-only", 10), ("linear", 1)])
+def test_a_u_shaped_cable_with_an_end_mass_turns_over_to_hang(tmp_path: Path, axial: str,
+                                                              steps: int) -> None:
+    """The mass has to fall 0.92 m and the U turn over about the pin: the cable hangs straight
+    below the pin, each segment pulling with the weight below it, the mass at the cable's
+    stretched length. Solved exactly, the relaxation's pseudo-time steps had stalled in
+    Newton's method (residuals standing at 2e-4 N where they started from 0.01 - 10 N), and
+    the run failed at a load factor of 1/640 (tension-only, ten load steps) or 1/64 (linear,
+    one)."""
+    scene = tmp_path / "u.toml"
+    scene.write_text(_u_shaped_cable(axial, steps))
+    out = tmp_path / "out"
+    assert main(["run", str(scene), "-o", str(out), "--quiet"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    arrays = np.load(out / "result.npz")
+    x, tension = arrays["positions"][-1], arrays["tension"][-1]
+    points = tomllib.loads(scene.read_text())["rods"][0]["points"]
+    lengths = np.linalg.norm(np.diff(points, axis=0), axis=1)   # the rest lengths
+    EA, w = 3.183098861837907e10 * np.pi * 1e-3**2, 1e-3 * 9.81
+    node_weight = w * (np.r_[0.0, lengths] + np.r_[lengths, 0.0]) / 2
+    below = 9.81 + np.cumsum(node_weight[::-1])[::-1][1:]   # the mass and the nodes below
+    assert tension == pytest.approx(below, rel=1e-4)
+    assert np.abs(x[:, 0] + 0.1013).max() < 1e-6 and np.abs(x[:, 1]).max() < 1e-6
+    stretched = float(np.sum(lengths * (1.0 + below / EA)))
+    assert x[summary["nodes"]["cab:end"], 2] == pytest.approx(-0.3 - stretched, abs=1e-6)
+    assert not any("unstable" in warning for warning in summary["warnings"])
+
+
 def test_a_slack_net_hung_by_its_corners_sags_to_one_shape(tmp_path: Path) -> None:
     """A 4 m net (lumped, tension-only, two segments per thread) pinned at its four corners 3.6 m
     apart, slack, under its weight: Newton's method alone finds no equilibrium from the flat
