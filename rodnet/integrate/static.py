@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from scipy.spatial.transform import Rotation
 from numpy.typing import NDArray
 
 from rodnet.errors import SimulationFailed
@@ -210,8 +211,15 @@ def _watch_jump(system: System, q: Configuration, q_new: Configuration, lam: flo
     the first jump's load factors go to ``stats.extra`` (``jump_from``, ``jump_to``,
     ``jump_move`` [m]), the later ones' count and last load factors to ``jumps_later``,
     ``last_jump_from``, ``last_jump_to``. Load control follows the path of equilibria only up to a limit point
-    (a snap-through) or a bifurcation (buckling): past it Newton lands on another branch."""
-    move = float(np.max(np.linalg.norm(q_new.x - q.x, axis=1), initial=0.0))
+    (a snap-through) or a bifurcation (buckling): past it Newton lands on another branch.
+    A structure without supports (held by its contacts alone) is measured after the rigid
+    motion that best takes one state to the other: a frictionless net on a sphere turns freely
+    about the vertical, a neutral motion that moved its nodes 5 cm in one of 20 load steps and
+    was told as a jump."""
+    motion = q_new.x - q.x
+    if system.free.all() and len(q.x) > 2:
+        motion = _shape_change(q.x, q_new.x)
+    move = float(np.max(np.linalg.norm(motion, axis=1), initial=0.0))
     now = move / max(trial - lam, 1e-300)
     if rate > 0.0 and now > JUMP_FACTOR * rate and move > JUMP_SIZE * system.length_scale:
         if "jump_from" not in stats.extra:
@@ -220,6 +228,15 @@ def _watch_jump(system: System, q: Configuration, q_new: Configuration, lam: flo
             stats.extra.update(jumps_later=stats.extra.get("jumps_later", 0.0) + 1.0,
                                last_jump_from=lam, last_jump_to=trial)
     return now
+
+
+def _shape_change(x0: FloatArray, x1: FloatArray) -> FloatArray:
+    """The node motions (N, 3) [m] from ``x0`` to ``x1`` (N, 3) left after the rigid motion
+    (translation of the mean, rotation by Kabsch's least squares) that best takes one to the
+    other."""
+    a, b = x0 - x0.mean(axis=0), x1 - x1.mean(axis=0)
+    turn, _ = Rotation.align_vectors(b, a)
+    return b - turn.apply(a)
 
 
 def _relaxed(solve: _Solve, q: Configuration, load: float, far: bool = False
