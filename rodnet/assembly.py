@@ -323,6 +323,30 @@ def add_diagonal(matrix: IterationMatrix, shift: FloatArray) -> IterationMatrix:
     return (matrix + sp.diags(shift)).tocsr()
 
 
+def add_blocks(matrix: IterationMatrix, rows: IndexArray, blocks: FloatArray) -> IterationMatrix:
+    """``matrix`` (CSR, band or dense) with the square ``blocks`` (B, k, k) added at the rows and
+    columns ``rows`` (B, k), in place; every entry of the blocks must lie in the matrix's
+    pattern (CSR) or band."""
+    if isinstance(matrix, np.ndarray):
+        for r, block in zip(rows, blocks):
+            matrix[np.ix_(r, r)] += block
+        return matrix
+    if isinstance(matrix, BandedMatrix):
+        where = np.argsort(matrix.order)   # position of every row in the band's order
+        for r, block in zip(rows, blocks):
+            i, j = np.meshgrid(where[r], where[r], indexing="ij")
+            matrix.ab[matrix.lower + matrix.upper + i - j, j] += block
+        return matrix
+    for r, block in zip(rows, blocks):
+        for a, row in enumerate(r):
+            start, stop = matrix.indptr[row], matrix.indptr[row + 1]
+            at = start + np.searchsorted(matrix.indices[start:stop], r)
+            if not np.array_equal(matrix.indices[at], r):
+                raise ValueError("a block entry lies outside the matrix's pattern")
+            matrix.data[at] += block[a]
+    return matrix
+
+
 def diagonal(matrix: IterationMatrix) -> FloatArray:
     """The diagonal of ``matrix`` (n,)."""
     if isinstance(matrix, BandedMatrix):

@@ -118,6 +118,11 @@ class System(Protocol):
         the two."""
         ...
 
+    def step_limit(self, v: FloatArray) -> float:
+        """The longest step [s] an adaptive run may take at the velocities ``v`` (n_dof,)
+        besides its error control: what the free bodies' nutation allows (inf without one)."""
+        ...
+
     def rotation_dofs(self) -> NDArray[np.int64]:
         """Indices of the rotational DOFs (their Newton increments are capped)."""
         ...

@@ -20,6 +20,7 @@ couples them to the threads (``elements/contact/FORMULATION.md`` section 9).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any, Protocol
@@ -439,6 +440,23 @@ class ThreadSystem:
                          + radius**2 * np.sum(change[rot] ** 2, axis=1))
         return max(threads, float(bodies.max()))
 
+    def step_limit(self, v: FloatArray) -> float:
+        """A free body turning at ``W`` nutates, seen from its own axes, at up to ``f |W|``
+        (``f`` from its principal moments, :func:`nutation_factor`): a motion the dissipative
+        schemes damp (turning its angular momentum) where their error estimate, measured on the
+        damped solution, does not see it. The step is held to :data:`NUTATION_TURN` of it."""
+        if not self.n_moving:
+            return math.inf
+        _, rot = self._body_dofs
+        rate = self._nutation_factors * np.linalg.norm(v[rot], axis=1)
+        fastest = float(rate.max(initial=0.0))
+        return NUTATION_TURN / fastest if fastest > 0.0 else math.inf
+
+    @cached_property
+    def _nutation_factors(self) -> FloatArray:
+        moments = self.contact.principal[1]  # type: ignore[union-attr]
+        return np.array([nutation_factor(J) for J in moments])
+
     def rotation_dofs(self) -> NDArray[np.int64]:
         if not self.n_moving:
             return self.model.rotation_dofs()
@@ -538,3 +556,23 @@ class ThreadSystem:
     def summary(self, arrays: dict[str, Any]) -> dict[str, Any]:
         """What the system adds to ``summary.json`` (with bodies: the contact series)."""
         return {} if self.contact is None else self.contact.summary(arrays)
+
+
+NUTATION_TURN = 0.05
+"""The largest turn [rad] of a free body's nutation per step in adaptive implicit runs
+(:meth:`ThreadSystem.step_limit`)."""
+
+
+def nutation_factor(moments: FloatArray) -> float:
+    """``f`` (at most 1) such that a torque-free body with the principal moments (3,) turning at
+    ``W`` nutates, seen from its own axes, at no more than ``f |W|``: the largest
+    ``sqrt(|(I_i - I_j)(I_i - I_k)| / (I_j I_k))`` over its principal moments, the frequency
+    (or growth rate) of a small wobble about a spin about axis ``i`` per unit of spin (Euler's
+    equations); 0 for a body whose moments are all equal. The moments obey ``I_i <= I_j +
+    I_k``, so ``|I_i - I_j| <= I_k`` and ``f <= 1``."""
+    out = 0.0
+    for i in range(3):
+        j, k = (i + 1) % 3, (i + 2) % 3
+        out = max(out, float(np.sqrt(abs((moments[i] - moments[j]) * (moments[i] - moments[k]))
+                                     / (moments[j] * moments[k]))))
+    return out
