@@ -42,7 +42,9 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
         "s", "> 0. Explicit integrator with `adaptive = false`: the step, shrunk so that a whole "
         "number of steps fits each frame interval; a `dt` above the explicit stability limit (S10) "
         "is refused. Implicit integrators: the first step (`adaptive = true`) or the fixed step "
-        "(`adaptive = false`); steps are cut short to land on every frame time. Not used by the "
+        "(`adaptive = false`, shrunk, like the explicit one, so that a whole number of equal steps "
+        "fits each interval between frames and the times where a load changes: a short last step "
+        "before each frame cost generalized-alpha its second order, an outside check). Not used by the "
         "explicit integrator with `adaptive = true`, by `rk45` or by static runs."),
     "simulation.adaptive": (
         "", "Explicit integrator: `true` sets the step to `explicit_safety` times the stability "
@@ -286,8 +288,10 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
         "model and cable threads (no rotations), and at pinned knots and corner masses of a "
         "Cosserat net (no single rotation)."),
     "loads.ramp": (
-        "s", ">= 0. Dynamic runs: the load grows linearly from zero to full over this time; 0 "
-        "applies it in full from t = 0. Static runs: must stay 0 (`simulation.load_steps` raises "
+        "s", ">= 0. Dynamic runs: the load grows linearly from zero at t = 0 to full at t = "
+        "`ramp`, counted from t = 0, not from `start` (a load with a later `start` jumps there "
+        "to `min(start / ramp, 1)`; a ramp from `start` is a `table`); 0 applies it in full. "
+        "Static runs: must stay 0 (`simulation.load_steps` raises "
         "the loads). Not together with `table`."),
     "loads.table": (
         "s, -", "Dynamic runs: the load's factor over time as `[[t, factor], ...]` rows, times "

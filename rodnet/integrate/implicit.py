@@ -836,12 +836,15 @@ def integrate_implicit(scheme: Scheme, state: State, times: NDArray[np.float64],
     if adaptive:
         dt = min(dt, system.step_limit(motion.v))
     t, h, easy = float(times[0]), dt, 0
+    fixed = dt   # the fixed step, before it is shrunk to fill each frame interval
     newton_limit = math.inf  # below a step Newton just failed on; relaxed by 1.2 per step
     controlled = adaptive and error_tolerance is not None
     frame_gap = float(np.diff(times).max(initial=dt))
     dt_max = max(dt, frame_gap) if dt_max is None else max(dt, dt_max)
     for t_frame in times[1:]:
         steps = 0   # accepted steps towards this frame
+        if not adaptive:
+            h = _equal_steps(fixed, t_frame - t)
         while t < t_frame - 1e-12 * max(1.0, abs(t_frame)):
             h_try = min(h, t_frame - t)
             new, result = scheme.step(motion, t, h_try)
@@ -863,6 +866,7 @@ def integrate_implicit(scheme: Scheme, state: State, times: NDArray[np.float64],
             if travel > 1.0:  # a point near a body moved too far: it could pass through it
                 stats.rejected_steps += 1
                 h, easy = 0.9 * h_try / travel, 0
+                fixed = min(fixed, h)
                 if h < min_dt:
                     raise SimulationFailed(f"the step fell below {min_dt:.3g} s at t = {t:.6g} s "
                                            "to keep thread points near a body within their "
@@ -908,6 +912,15 @@ def integrate_implicit(scheme: Scheme, state: State, times: NDArray[np.float64],
         if float(t_frame) in restarts:
             motion = scheme.initial(motion.q, motion.v, float(t_frame))
     return stats
+
+
+def _equal_steps(h: float, interval: float) -> float:
+    """The fixed step ``h`` [s] shrunk so that a whole number of equal steps fills
+    ``interval`` [s] (``h`` itself where it does, to 1e-9 of it): a short last step before each
+    frame, where generalized-alpha's accelerations belong to the step size, cost it its second
+    order (an outside check: order 1.1 on a tumbling box, frames every 3.5 steps)."""
+    n = max(1, math.ceil(interval / h * (1.0 - 1e-9)))
+    return h if abs(n * h - interval) <= 1e-9 * h else interval / n
 
 
 CRAWL_STEPS, CRAWL_FRACTION = 20_000, 1e-5
