@@ -98,6 +98,7 @@ def integrate_explicit(system: System, state: State, times: NDArray[np.float64],
     control = control._replace(blocks=threads.current())   # a block of elements per thread
     rods = problem.rods.rest_length.shape[0] > 0
     nodes_only = node_forces_only(problem, control)   # the fused loop of nodes-only problems
+    bodies_near = state.bodies is not None and control.near_dt < control.dt
     stats = StepStats() if stats is None else stats  # filled in place: kept if the run fails
 
     def march(a: float, b: float, steps: int, h: float):  # type: ignore[no-untyped-def]
@@ -112,6 +113,9 @@ def integrate_explicit(system: System, state: State, times: NDArray[np.float64],
         n, h = whole_steps(t_start, t_end, control.dt)
         peak = 0.0   # counted once the frame has passed its checks
         pieces = -(-n // CALL_STEPS)
+        if bodies_near:   # near a body the loop steps at near_dt: at most CALL_STEPS of those
+            pieces = min(n, max(pieces, math.ceil((t_end - t_start) / control.near_dt
+                                                  / CALL_STEPS)))
         ends = [0] + [round(i * n / pieces) for i in range(1, pieces + 1)]
         for k in range(pieces):   # one call per frame, unless it would run for minutes
             a = float(t_start) if k == 0 else float(t_start) + ends[k] * h

@@ -236,6 +236,28 @@ def test_cli_refuses_a_free_body_in_a_static_run_and_writes_nothing(
     assert "simulation.type" in err and "a static run needs every body fixed" in err
 
 
+@pytest.mark.parametrize("stiffness, refused", [(1e22, True), (1e30, True), (1e5, False)])
+def test_an_explicit_run_with_contact_far_too_stiff_is_refused(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], stiffness: float,
+        refused: bool) -> None:
+    """A contact stiffness written many orders too high (1e22 N/m for 1e2) makes the explicit
+    step near a body so short that one frame interval would take days in the compiled loop,
+    which no stop request reaches (1e30 N/m ran on for 15 minutes after SIGTERM and two SIGINTs,
+    outside check): refused before anything is written, naming the key and the value, like a
+    thread far too stiff (a plausible stiffness runs)."""
+    scene = tmp_path / "scene.toml"
+    scene.write_text(with_body(f"[contact]\nstiffness = {stiffness:g}\n"))
+    out = tmp_path / "out"
+    code = main(["run", str(scene), "-o", str(out), "--quiet"]
+                + ([] if refused else ["--set", "simulation.duration=0.001"]))
+    err = capsys.readouterr().err
+    if refused:
+        assert code == 2 and not out.exists()
+        assert "contact.stiffness" in err and f"{stiffness:g}" in err and "1e+10" in err
+    else:
+        assert code == 0, err
+
+
 def test_contact_defaults_and_orientation() -> None:
     scene = scene_from_toml(with_body(), ["bodies[0].orientation_deg=[90.0, 0.0, 90.0]"])
     model = prepare(scene).system
