@@ -633,7 +633,8 @@ class Scene:
         for i, line in enumerate(self.line_loads):
             require(line.on in rod_names or (line.on == "net" and self.net is not None),
                     f"line_loads[{i}].on", line.on,
-                    f"must name a rod {rod_names} or be \"net\" (with a [net])")
+                    (f"must name a rod {rod_names} or be \"net\" (with a [net])" if rod_names
+                     else "must be \"net\": the scene has no [[rods]]"))
         if self.simulation.gravity_scheduled:
             key = "simulation.gravity_ramp" if self.simulation.gravity_table is None \
                 else "simulation.gravity_table"

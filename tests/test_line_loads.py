@@ -87,3 +87,17 @@ def test_bad_line_loads_are_refused_by_key(body: str, key: str) -> None:
     with pytest.raises(SceneError) as err:
         scene_from_toml(BEAM.format(loads="[[line_loads]]\n" + body))
     assert key in str(err.value)
+
+
+def test_a_line_load_on_a_rod_in_a_net_only_scene_says_what_it_may_name() -> None:
+    """A net-only scene has no rod to name: the message says "net", not "a rod []" (outside
+    check)."""
+    from tests.conftest import small_net_toml
+
+    text = small_net_toml().replace("[output]", '[[line_loads]]\non = "beam"\n'
+                                    'force_per_length = [0.0, 0.0, 1.0]\n[output]')
+    with pytest.raises(SceneError) as err:
+        scene_from_toml(text)
+    message = str(err.value)
+    assert "line_loads[0].on" in message and "'beam'" in message
+    assert 'must be "net"' in message and "[]" not in message
