@@ -30,7 +30,7 @@ from numpy.typing import NDArray
 from scipy.sparse.csgraph import connected_components
 
 from rodnet import config
-from rodnet.config import ContactSpec, Scene
+from rodnet.config import Scene
 from rodnet.contact.rigid_body import start_motion
 from rodnet.errors import SceneError, SimulationFailed
 from rodnet.integrate.explicit import integrate_explicit
@@ -172,9 +172,8 @@ def _check_run_size(scene: Scene, built: Built) -> None:
     if scene.bodies and steps <= MAX_EXPLICIT_STEPS and not near <= MAX_EXPLICIT_STEPS:
         # a stiffness written many orders too high: the compiled loop would run for days
         # between frames, deaf to a stop request (1e18 N/m ran on after SIGTERM, outside check)
-        stiffness = scene.contact.stiffness if scene.contact is not None else \
-            ContactSpec().stiffness
-        raise SceneError("contact.stiffness", stiffness,
+        raise SceneError("contact.stiffness",
+                         built.system.contact.bodies.law.stiffness,  # type: ignore[union-attr]
                          f"makes the explicit step near a body {control.near_dt:.3g} s, so "
                          f"simulation.duration = {sim.duration:g} s would take up to {near:.3g} "
                          f"steps there (at most {MAX_EXPLICIT_STEPS:.0e}): choose it from the "
@@ -717,6 +716,21 @@ def _viscous_step(p: Prepared) -> list[str]:
             + (", or an implicit integrator," if implicit else "") + " takes fewer steps"]
 
 
+def _unforced_energy(p: Prepared, arrays: dict[str, NDArray[Any]]
+                     ) -> tuple[NDArray[Any], NDArray[Any], bool] | None:
+    """The saved frames' energy (:func:`rodnet.io.recorder.mechanical_energy`, with gravity's
+    potential where gravity acts) (F,), its part in motion (F,) and whether gravity acts, for a
+    dynamic run on which nothing but a constant gravity does work (no loads); None otherwise,
+    or with fewer than two frames."""
+    scene, sim = p.scene, p.scene.simulation
+    if sim.type != "dynamic" or scene.loads or scene.line_loads or sim.gravity_scheduled or \
+            "kinetic_energy" not in arrays or len(arrays["time"]) < 2:
+        return None
+    gravity = bool(any(sim.gravity))
+    energy, motion = mechanical_energy(arrays, gravity)
+    return energy, motion, gravity
+
+
 ENERGY_RISE = 0.05
 """A dynamic run whose energy, which nothing raises, rose by more than this fraction warns
 (of its start, or under gravity of the largest energy in motion; undamped threads snapping at
@@ -731,11 +745,10 @@ def _energy_rise(p: Prepared, arrays: dict[str, NDArray[Any]]) -> list[str]:
     percent (and a light rope pressed on a drum by its weight grows without bound); the implicit
     schemes' guard 10 %, below which the midpoint rule in contact can gain a few percent."""
     scene, sim = p.scene, p.scene.simulation
-    if sim.type != "dynamic" or scene.loads or scene.line_loads or sim.gravity_scheduled or \
-            "kinetic_energy" not in arrays or len(arrays["time"]) < 2:
+    unforced = _unforced_energy(p, arrays)
+    if unforced is None:
         return []
-    gravity = bool(any(sim.gravity))
-    energy, motion = mechanical_energy(arrays, gravity)
+    energy, motion, gravity = unforced
     gain = energy_gain(energy, energy[0])
     if gravity:
         rise = float(np.max(gain / np.maximum(np.maximum.accumulate(motion),
@@ -779,16 +792,14 @@ def _energy_loss(p: Prepared, arrays: dict[str, NDArray[Any]]) -> list[str]:
     scheme's numerical damping took at snaps and contacts its steps do not resolve (an outside
     check: a rod hitting a free sphere head-on lost 24 % of its energy under BDF2 at default
     steps, its exit velocity 5.7 % low; 0.2 % at a fixed 2.5e-6 s; without a word)."""
-    scene, sim = p.scene, p.scene.simulation
-    contact = scene.contact if scene.contact is not None else ContactSpec()
+    scene = p.scene
+    law = None if p.system.contact is None else p.system.contact.bodies.law
     dissipates = any(m.viscosity > 0.0 for m in scene.materials) or (
-        bool(scene.bodies) and (contact.damping > 0.0 or contact.friction > 0.0))
-    if sim.type != "dynamic" or scene.integrator not in DISSIPATIVE_SCHEMES or dissipates or \
-            scene.loads or scene.line_loads or sim.gravity_scheduled or \
-            "kinetic_energy" not in arrays or len(arrays["time"]) < 2:
+        law is not None and (law.damping > 0.0 or law.friction > 0.0))
+    unforced = _unforced_energy(p, arrays)
+    if scene.integrator not in DISSIPATIVE_SCHEMES or dissipates or unforced is None:
         return []
-    gravity = bool(any(sim.gravity))
-    energy, motion = mechanical_energy(arrays, gravity)
+    energy, motion, gravity = unforced
     scale = float(np.max(motion)) if gravity else float(energy[0])
     loss = float(energy[0] - energy[-1]) / scale if scale > 0.0 else 0.0
     if not loss > ENERGY_LOSS:

@@ -15,27 +15,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rodnet.errors import SimulationFailed
-from rodnet.integrate.frames import ProgressSink, StepStats
+from rodnet.integrate.frames import ProgressSink, StepStats, whole_steps
 from rodnet.integrate.system import FrameSink, System
 from rodnet.kernels.contact_compiled import contact_scratch
 from rodnet.kernels import threads
 from rodnet.kernels.explicit import (Bodies, ExplicitProblem, Marched, Scratch, StepControl,
                                      march_for, march_nodes, node_forces_only)
 from rodnet.state import State
-
-
-def whole_steps(t_start: float, t_end: float, step: float) -> tuple[int, float]:
-    """Steps from ``t_start`` to ``t_end`` [s]: ``step`` [s] shrunk so that a whole number fits.
-
-    Returns
-    -------
-    n_steps : int
-        How many steps, at least one.
-    h : float
-        Their length [s].
-    """
-    n_steps = max(1, math.ceil((t_end - t_start) / step - 1e-9))
-    return n_steps, (t_end - t_start) / n_steps
 
 
 def scratch(problem: ExplicitProblem) -> Scratch:

@@ -1,7 +1,9 @@
-"""What every integrator reports: saved frames and step statistics."""
+"""What every integrator reports (saved frames and step statistics), and how a fixed step fills a
+frame interval."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -51,3 +53,17 @@ def frame_times(duration: float, frame_interval: float) -> NDArray[np.float64]:
     else:
         times[-1] = duration   # not 6 x 0.05 = 0.30000000000000004
     return times
+
+
+def whole_steps(t_start: float, t_end: float, step: float) -> tuple[int, float]:
+    """Steps from ``t_start`` to ``t_end`` [s]: ``step`` [s] shrunk so that a whole number fits.
+
+    Returns
+    -------
+    n_steps : int
+        How many steps, at least one.
+    h : float
+        Their length [s].
+    """
+    n_steps = max(1, math.ceil((t_end - t_start) / step - 1e-9))
+    return n_steps, (t_end - t_start) / n_steps

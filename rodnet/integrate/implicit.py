@@ -30,7 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rodnet.errors import SimulationFailed
-from rodnet.integrate.frames import ProgressSink, StepStats
+from rodnet.integrate.frames import ProgressSink, StepStats, whole_steps
 from rodnet.integrate.mixed import MixedStrains
 from rodnet.integrate.newton import (Evaluate, LinearSolver, NewtonOptions, NewtonProblem,
                                      NewtonResult, newton)
@@ -916,11 +916,12 @@ def integrate_implicit(scheme: Scheme, state: State, times: NDArray[np.float64],
 
 def _equal_steps(h: float, interval: float) -> float:
     """The fixed step ``h`` [s] shrunk so that a whole number of equal steps fills
-    ``interval`` [s] (``h`` itself where it does, to 1e-9 of it): a short last step before each
+    ``interval`` [s] (:func:`~rodnet.integrate.frames.whole_steps`; ``h`` itself where it
+    does, to 1e-9 of it, so that such runs step as before): a short last step before each
     frame, where generalized-alpha's accelerations belong to the step size, cost it its second
     order (an outside check: order 1.1 on a tumbling box, frames every 3.5 steps)."""
-    n = max(1, math.ceil(interval / h * (1.0 - 1e-9)))
-    return h if abs(n * h - interval) <= 1e-9 * h else interval / n
+    n, equal = whole_steps(0.0, interval, h)
+    return h if abs(n * h - interval) <= 1e-9 * h else equal
 
 
 CRAWL_STEPS, CRAWL_FRACTION = 20_000, 1e-5

@@ -447,7 +447,7 @@ def _update(x, quat, v, W, f_node, m_node, nodes, rotations, h,
 
 @numba.njit(cache=True)
 def _whole_steps(t_start, t_end, step):  # pragma: no cover - compiled
-    """``rodnet.integrate.explicit.whole_steps``: how many steps of at most ``step`` fit from
+    """``rodnet.integrate.frames.whole_steps``: how many steps of at most ``step`` fit from
     ``t_start`` to ``t_end``, and their length."""
     n = max(1, math.ceil((t_end - t_start) / step - 1e-9))
     return n, (t_end - t_start) / n

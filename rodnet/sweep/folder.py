@@ -69,7 +69,6 @@ def _identity(definition: Any) -> dict[str, Any]:
     return out
 
 
-
 def _read_summary(path: Path) -> dict[str, Any]:
     try:
         return json.loads(path.read_text())
