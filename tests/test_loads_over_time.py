@@ -49,8 +49,10 @@ frame_interval = 0.05
 """
 
 
-def _momentum_change(tmp_path: Path, integrator: str, model: str, timing: str) -> np.ndarray:
-    scene = scene_from_toml(SCENE.format(integrator=integrator, model=model, timing=timing))
+def _momentum_change(tmp_path: Path, integrator: str, model: str, timing: str,
+                     overrides: tuple[str, ...] = ()) -> np.ndarray:
+    scene = scene_from_toml(SCENE.format(integrator=integrator, model=model, timing=timing),
+                            list(overrides))
     r = run(scene, tmp_path, progress=False)
     assert r.status == "ok", r.message
     a = r.arrays
@@ -78,6 +80,21 @@ def test_a_table_of_jumps_gives_the_integral_of_its_factor(tmp_path: Path, integ
     change = _momentum_change(tmp_path, integrator, model, table)
     np.testing.assert_allclose(change, np.array(FORCE) * (0.1 - 0.5 * 0.15), rtol=1e-9,
                                atol=1e-12)
+
+
+@pytest.mark.parametrize("integrator, model", [("bdf2", "cosserat"), ("bdf2", "lumped"),
+                                               ("generalized-alpha", "cosserat"),
+                                               ("generalized-alpha", "lumped")])
+def test_a_triangular_pulse_at_large_steps_gives_its_impulse(tmp_path: Path, integrator: str,
+                                                             model: str) -> None:
+    # a 60 ms triangle at fixed 10 ms steps: the loads' work is known to the scheme's order
+    # only, and the energy guard took the falling side and the steps after it for a gain,
+    # retaking them as backward Euler (-14 % of the impulse with BDF2, -16.5 % with
+    # generalized-alpha)
+    table = "table = [[0.1, 0.0], [0.13, 1.0], [0.16, 0.0]]"
+    change = _momentum_change(tmp_path, integrator, model, table,
+                              ("simulation.adaptive=false", "simulation.dt=0.01"))
+    np.testing.assert_allclose(change, np.array(FORCE) * 0.03, rtol=1e-9, atol=1e-12)
 
 
 def test_factor_of_ramp_table_and_window() -> None:
