@@ -34,9 +34,10 @@ class Progress:
     """
 
     def __init__(self, duration: float, enabled: bool | None = None,
-                 stream: TextIO = sys.stderr) -> None:
-        self.duration, self.stream = duration, stream
-        tty = stream.isatty()
+                 stream: TextIO | None = None) -> None:
+        self.duration = duration
+        self.stream = sys.stderr if stream is None else stream   # the one of the time of the run
+        tty = self.stream.isatty()
         self.mode = "off" if enabled is False else "bar" if enabled or tty else "log"
         self.enabled = self.mode != "off"
         self.start = time.perf_counter()
@@ -67,6 +68,12 @@ class Progress:
         speed = t / wall if wall > 0 else 0.0
         self._write(f"\r[{bar}] t = {t:.4g}/{self.duration:.4g} s  dt = {dt:.2e} s  "
                     f"steps {stats.steps}  {speed:.3g} s simulated per s wall ")
+
+    def note(self, text: str) -> None:
+        """Write ``text`` as a line of its own before the progress starts (not in silent
+        mode)."""
+        if self.mode != "off":
+            self._write(text + "\n")
 
     def close(self) -> None:
         """End the progress line."""
@@ -99,9 +106,10 @@ class RunsProgress:
     """
 
     def __init__(self, total: int, done: int = 0, enabled: bool | None = None,
-                 stream: TextIO = sys.stderr) -> None:
-        self.total, self.done_before, self.stream = total, done, stream
-        self.mode = "off" if enabled is False else "bar" if enabled or stream.isatty() else "log"
+                 stream: TextIO | None = None) -> None:
+        self.total, self.done_before = total, done
+        self.stream = sys.stderr if stream is None else stream
+        self.mode = "off" if enabled is False else "bar" if enabled or self.stream.isatty() else "log"
         self.start = time.perf_counter()
         self.last_draw = self.start
         self.next_fraction = LOG_FRACTION

@@ -428,6 +428,9 @@ def run(scene: Scene, directory: str | Path | None = None, *, progress: bool | N
         recorder = Recorder(_frame_function(p), vtk, checks, skip_first=not dynamic,
                             advice=_stability_advice(p), only={float(t) for t in p.frames})
         bar = Progress(scene.simulation.duration, enabled=progress)
+        for warning in _viscous_step(p):   # said before a run that may take hours, and after it
+            bar.note(f"rodnet: warning: {warning} (about {_explicit_steps(p):.3g} steps "
+                     f"for simulation.duration = {scene.simulation.duration:g} s)")
         status, message, stats = "ok", "", StepStats()
         integrate = INTEGRATORS[scene.integrator] if dynamic else _static
         start = time.perf_counter()
@@ -714,6 +717,14 @@ def _viscous_step(p: Prepared) -> list[str]:
             f"than the {free:.3g} s it would be without the threads' Kelvin-Voigt damping "
             "(S10, C48): materials.viscosity sets the step; a smaller viscosity"
             + (", or an implicit integrator," if implicit else "") + " takes fewer steps"]
+
+
+def _explicit_steps(p: Prepared) -> float:
+    """The steps of an explicit run: at ``explicit_safety`` times its stability limit, or at
+    ``dt`` with ``adaptive = false``."""
+    sim, control = p.scene.simulation, p.system.control
+    assert control is not None
+    return sim.duration / (control.stable_step * sim.explicit_safety if sim.adaptive else sim.dt)
 
 
 def _unforced_energy(p: Prepared, arrays: dict[str, NDArray[Any]]

@@ -1281,3 +1281,21 @@ def test_a_diverged_explicit_run_ends_at_its_last_good_frame(tmp_path: Path) -> 
     assert len(a["time"]) >= 1 and np.abs(a["positions"]).max() < 100.0
     assert metrics["max_tension"] == metrics["max_tension_at_frames"] < 1e4
     assert metrics["max_mouth_area"] < 100.0
+
+
+def test_a_viscous_explicit_step_is_said_before_the_run(tmp_path: Path,
+                                                        capfd: pytest.CaptureFixture[str]) -> None:
+    """A step that the threads' viscosity shortens is said before the run, with the steps it
+    takes (an explicit run of 7.8e8 steps had started without notice, outside check), and in
+    the summary's warnings after it."""
+    r = run(scene_from_toml(PINNED_ROD, ["model.type=lumped", "simulation.integrator=explicit",
+                                         "simulation.adaptive=true", "simulation.duration=0.002",
+                                         "materials[0].viscosity=1e7"]),
+            tmp_path, progress=True)
+    assert r.status == "ok", r.message
+    first = capfd.readouterr().err.splitlines()[0]
+    assert first.startswith("rodnet: warning: the explicit stability limit") and \
+        "materials.viscosity" in first
+    steps = float(first.split("(about ")[1].split(" steps")[0])
+    assert steps == pytest.approx(r.summary["steps"], rel=0.01)
+    assert any("materials.viscosity" in w for w in r.summary["warnings"])
