@@ -370,7 +370,8 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
         "where it is six unknowns of the global system; refused in static runs). Contact with "
         "bodies works in the lumped model, cable threads and Cosserat rods, with the `explicit` "
         "and the implicit integrators, not `rk45`; a body that touches a thread at the start is refused, "
-        "naming the first node inside it."),
+        "naming the first node inside it (in a dynamic run also a body within `contact.smoothing` "
+        "of a thread)."),
     # [contact]
     "contact.stiffness": (
         "N/m", "Penalty stiffness `k` > 0 per contact point: `N = k delta` at a penetration "
@@ -393,7 +394,8 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
         "that do not resolve the contact frequency. Not set: 1e-6 m, or 1 % of the thinnest "
         "thread's radius where that is smaller (threads below 0.2 mm), so that a thin thread "
         "resting on a body is not held off it by the blend (a 2 um thread was held 0.8 um "
-        "above a box by a fixed 1e-6 m)."),
+        "above a box by a fixed 1e-6 m). A dynamic run whose threads start closer to a body "
+        "than `s` is refused naming this key (the blend's force already acts there)."),
     "contact.slip_velocity": (
         "m/s", "> 0. Regularisation `eps_v` of friction (F2): below it sticking is a creep; at "
         "a slip speed `v` friction is `mu N (1 - eps_v^2 / (2 v^2))`. Well below the sliding "

@@ -410,3 +410,52 @@ def test_a_net_draped_on_a_frictionless_sphere_turns_freely_without_a_jump(
     radius = [np.hypot(x[:, 0], x[:, 1]) for x in shapes]
     assert radius[1] == pytest.approx(radius[0], abs=1e-7)
     assert shapes[1][:, 2].min() < -0.05   # draped over the sphere, not lying flat
+
+
+THREAD_ABOVE_A_BALL = """
+[simulation]
+type = "{kind}"
+duration = 0.02
+[model]
+type = "lumped"
+[[materials]]
+name = "kevlar"
+density = 1440.0
+youngs_modulus = 7.0e10
+diameter = 0.001
+[[rods]]
+name = "r"
+material = "kevlar"
+points = [[-0.5, 0, 0.16], [0.5, 0, 0.16]]
+elements = 10
+[[supports]]
+node = "r:start"
+fix = "pin"
+[[supports]]
+node = "r:end"
+fix = "pin"
+[[bodies]]
+name = "ball"
+shape = "sphere"
+size = [0.3, 0.3, 0.3]
+fixed = true
+[contact]
+smoothing = {smoothing}
+friction = 0.0
+[output]
+vtk = false
+"""
+"""A thread at rest with its surface 9.5 mm above a fixed sphere."""
+
+
+def test_a_thread_within_the_smoothing_band_at_the_start_is_refused() -> None:
+    # the contact force starts at a gap of `smoothing` (N1): with 0.1 m the thread at rest
+    # started with 201 J in the contact spring and flew off at 1,000 m/s (outside check)
+    with pytest.raises(SceneError) as info:
+        prepare(scene_from_toml(THREAD_ABOVE_A_BALL.format(kind="dynamic", smoothing=0.1)))
+    assert info.value.key == "contact.smoothing" and "'ball'" in str(info.value)
+    assert "node 5 (r:5)" in str(info.value) and "0.0095 m" in str(info.value)
+    # a blend narrower than the gap starts with no contact; a static run only starts its
+    # search there
+    prepare(scene_from_toml(THREAD_ABOVE_A_BALL.format(kind="dynamic", smoothing=0.009)))
+    prepare(scene_from_toml(THREAD_ABOVE_A_BALL.format(kind="static", smoothing=0.1)))
