@@ -180,10 +180,11 @@ def _check_run_size(scene: Scene, built: Built) -> None:
                          "loads and the admissible penetration (docs/contact.md), or use an "
                          "implicit integrator")
     if not steps <= MAX_EXPLICIT_STEPS:
+        limit = (f"is {control.stable_step:.3g} s, so simulation.duration = {sim.duration:g} "
+                 f"s would take {steps:.3g} steps (at most {MAX_EXPLICIT_STEPS:.0e})"
+                 ) if control.stable_step > 0.0 else "rounds to 0 s"
         raise SceneError("simulation.integrator", "explicit",
-                         f"the explicit stability limit of this scene is {control.stable_step:.3g} "
-                         f"s, so simulation.duration = {sim.duration:g} s would take {steps:.3g} "
-                         f"steps (at most {MAX_EXPLICIT_STEPS:.0e}): a thread far too stiff for its "
+                         f"the explicit stability limit of this scene {limit}: a thread far too stiff for its "
                          "lightest node (check the materials' youngs_modulus, axial_stiffness and "
                          "viscosity, and the masses), or use an implicit integrator")
 
@@ -771,6 +772,7 @@ def _energy_rise(p: Prepared, arrays: dict[str, NDArray[Any]]) -> list[str]:
     measure = ("the energy, gravity's potential included, rose by "
                f"{100.0 * rise:.3g} % of the largest energy in motion") if gravity else \
         f"the kinetic and elastic energy rose by {100.0 * rise:.3g} %"
+    measure += " over the saved frames"   # a failed run's message tells the step's own figure
     told = f"{measure} although nothing does work on the structure" + \
         (" but gravity" if gravity else "")
     if scene.integrator != "explicit":

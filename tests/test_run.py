@@ -907,6 +907,10 @@ def test_a_run_too_large_to_keep_or_to_step_is_refused_before_it_starts(tmp_path
     with pytest.raises(SceneError, match=r"simulation\.integrator = 'explicit': the explicit "
                                          r"stability limit of this scene is"):
         run(scene_from_toml(stiff), tmp_path / "stiff", progress=False)
+    # a limit that rounds to zero is said so ("0 s ... inf steps" before, outside check)
+    viscous = small_net_toml(duration=0.02).replace("viscosity = 2000000.0", "viscosity = 1e15")
+    with pytest.raises(SceneError, match=r"stability limit of this scene rounds to 0 s: "):
+        run(scene_from_toml(viscous), tmp_path / "viscous", progress=False)
     assert not (tmp_path / "long").exists() and not (tmp_path / "stiff").exists()
 
 
@@ -1258,13 +1262,17 @@ def test_an_implicit_run_that_finds_no_usable_step_stops_and_says_why(
                    tmp_path / integrator, progress=False)
         assert done.status == "ok" and done.summary["steps"] < 300, done.message
     monkeypatch.setattr(implicit, "CRAWL_STEPS", 300)   # 20,000 in a run: about a minute here
-    monkeypatch.setattr(implicit.BDF2, "local_error",
-                        lambda self, old, new, h: 1e-6 * (h / 1e-9) ** 3)
-    r = run(scene_from_toml(PUSHED_THROUGH.format(integrator="bdf2"),
-                            ["simulation.error_tolerance=1e-6"]), tmp_path / "crawl",
-            progress=False)
-    assert r.status == "failed" and "steps since the last frame" in r.message, r.message
-    assert "another integrator (bdf2" in r.message and len(r.arrays["time"]) == 1
+    for integrator, scheme in (("bdf2", implicit.BDF2), ("midpoint", implicit.Midpoint)):
+        monkeypatch.setattr(scheme, "local_error",
+                            lambda self, old, new, h: 1e-6 * (h / 1e-9) ** 3)
+        r = run(scene_from_toml(PUSHED_THROUGH.format(integrator=integrator),
+                                ["simulation.error_tolerance=1e-6"]), tmp_path / f"crawl-{integrator}",
+                progress=False)
+        assert r.status == "failed" and "steps since the last frame" in r.message, r.message
+        assert "supports or stiffness" in r.message and len(r.arrays["time"]) == 1
+        # the damping integrators are advised to the others only (a failed BDF2 run was told
+        # to try bdf2, outside check)
+        assert ("another integrator (bdf2" in r.message) == (integrator == "midpoint")
 
 
 def test_a_diverged_explicit_run_ends_at_its_last_good_frame(tmp_path: Path) -> None:

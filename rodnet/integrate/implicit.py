@@ -927,8 +927,10 @@ def integrate_implicit(scheme: Scheme, state: State, times: NDArray[np.float64],
                 raise SimulationFailed(
                     f"{steps:,} steps since the last frame, the last {h_try:.3g} s long, at t = "
                     f"{t:.6g} s: the step control finds no usable step for the motion there (a "
-                    "section spun by a moment that nothing resists); another integrator (bdf2 "
-                    "and backward-euler damp), or supports or stiffness against that motion")
+                    "section spun by a moment that nothing resists); "
+                    + ("another integrator (bdf2 and backward-euler damp), "
+                       if scheme.name not in ("bdf2", "backward-euler") else "")
+                    + "supports or stiffness against that motion")
             stats.retaken_steps += new.retaken
             newton_limit = 1.2 * newton_limit if newton_limit < dt_max else math.inf
             h = min(h, newton_limit)
