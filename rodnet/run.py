@@ -429,9 +429,11 @@ def run(scene: Scene, directory: str | Path | None = None, *, progress: bool | N
         recorder = Recorder(_frame_function(p), vtk, checks, skip_first=not dynamic,
                             advice=_stability_advice(p), only={float(t) for t in p.frames})
         bar = Progress(scene.simulation.duration, enabled=progress)
-        for warning in _viscous_step(p):   # said before a run that may take hours, and after it
-            bar.note(f"rodnet: warning: {warning} (about {_explicit_steps(p):.3g} steps "
-                     f"for simulation.duration = {scene.simulation.duration:g} s)")
+        # what the scene alone decides is said before a run that may take hours, and after it
+        for warning in [f"{w} (about {_explicit_steps(p):.3g} steps for simulation.duration = "
+                        f"{scene.simulation.duration:g} s)" for w in _viscous_step(p)] + \
+                _scene_warnings(p):
+            bar.note(f"rodnet: warning: {warning}")
         status, message, stats = "ok", "", StepStats()
         integrate = INTEGRATORS[scene.integrator] if dynamic else _static
         start = time.perf_counter()
@@ -861,22 +863,13 @@ def _sunk(p: Prepared, arrays: dict[str, NDArray[Any]]) -> list[str]:
             "matters, with the steps that a stiffer contact needs"]
 
 
-def _warnings(p: Prepared, stats: StepStats, monitors: dict[str, float],
-              arrays: dict[str, NDArray[Any]]) -> list[str]:
-    """What the user should know about a completed or failed run: a clamp on threads without
-    rotations (it holds the node's position only, as a pin does: such threads pass no moment);
-    a static equilibrium that is unstable (:func:`rodnet.integrate.static.unstable`);
-    a rod element turned past the rotation stop (C52), where the stop's moment, not the
-    section, resisted its rotation; a node held by more than one support entry; a load that
-    its node's supports take whole; a net of rigid knots with one element per thread (shear
-    locking); keys set to no effect; rod elements turned inside out (C51); the midpoint rule
-    with contact; moments or spins on sections whose explicit rotary inertia was raised; an
-    explicit run whose energy rose (:func:`_energy_rise`); a fixed step longer than the frame
-    interval; an explicit step that the threads' Kelvin-Voigt damping shortens more than
-    :data:`VISCOUS_STEP_FACTOR` times. ``monitors``: :data:`rodnet.io.recorder.MONITORS` over
-    the saved frames ``arrays``."""
-    out = _viscous_step(p) + _energy_rise(p, arrays) + _energy_loss(p, arrays)
-    frames = len(arrays["time"])
+def _scene_warnings(p: Prepared) -> list[str]:
+    """The warnings that the scene alone decides, known before the run (:func:`run` says them
+    at the start too): a clamp on threads without rotations, nodes held or loaded on their
+    supports, keys set to no effect, closed rods, moments or spins on sections whose explicit
+    rotary inertia is raised, the midpoint rule with bodies, rigid knots with one element per
+    thread, a fixed step longer than the frame interval."""
+    out: list[str] = []
     clamps = [i for i, support in enumerate(p.scene.supports)
               if support.clamped]
     if clamps and not len(p.model.rotation_dofs()):
@@ -900,7 +893,6 @@ def _warnings(p: Prepared, stats: StepStats, monitors: dict[str, float],
                    "a suddenly applied moment is off (6 % of a rod's motion); set "
                    "simulation.rotary_inertia_scaling = false, or use an implicit integrator "
                    "with dt_max below the torsion period")
-    out += _sunk(p, arrays)
     if p.scene.integrator == "midpoint" and p.system.contact is not None:
         out.append("simulation.integrator = 'midpoint' with [[bodies]]: the midpoint rule is not "
                    "energy-stable in contact (a penalty force that switches on within a step "
@@ -919,6 +911,27 @@ def _warnings(p: Prepared, stats: StepStats, monitors: dict[str, float],
         out.append(f"simulation.dt = {sim.dt:g} s is longer than output.frame_interval = "
                    f"{interval:g} s: the steps were cut to land on every frame, so the run "
                    f"stepped at {interval:g} s")
+    return out
+
+
+def _warnings(p: Prepared, stats: StepStats, monitors: dict[str, float],
+              arrays: dict[str, NDArray[Any]]) -> list[str]:
+    """What the user should know about a completed or failed run: a clamp on threads without
+    rotations (it holds the node's position only, as a pin does: such threads pass no moment);
+    a static equilibrium that is unstable (:func:`rodnet.integrate.static.unstable`);
+    a rod element turned past the rotation stop (C52), where the stop's moment, not the
+    section, resisted its rotation; a node held by more than one support entry; a load that
+    its node's supports take whole; a net of rigid knots with one element per thread (shear
+    locking); keys set to no effect; rod elements turned inside out (C51); the midpoint rule
+    with contact; moments or spins on sections whose explicit rotary inertia was raised; an
+    explicit run whose energy rose (:func:`_energy_rise`); a fixed step longer than the frame
+    interval; an explicit step that the threads' Kelvin-Voigt damping shortens more than
+    :data:`VISCOUS_STEP_FACTOR` times. ``monitors``: :data:`rodnet.io.recorder.MONITORS` over
+    the saved frames ``arrays``."""
+    out = _viscous_step(p) + _energy_rise(p, arrays) + _energy_loss(p, arrays) + \
+        _scene_warnings(p) + _sunk(p, arrays)
+    frames = len(arrays["time"])
+    scale = _raised_inertia(p)
     if "jump_from" in stats.extra:
         e = stats.extra
         out.append(f"between load factors {e['jump_from']:.4g} and {e['jump_to']:.4g} the "

@@ -1307,3 +1307,20 @@ def test_a_viscous_explicit_step_is_said_before_the_run(tmp_path: Path,
     steps = float(first.split("(about ")[1].split(" steps")[0])
     assert steps == pytest.approx(r.summary["steps"], rel=0.01)
     assert any("materials.viscosity" in w for w in r.summary["warnings"])
+
+
+def test_what_the_scene_alone_decides_is_said_before_the_run(tmp_path: Path,
+                                                             capfd: pytest.CaptureFixture[str]
+                                                             ) -> None:
+    """A warning that the scene decides (here a fixed step longer than the frame interval) is
+    printed before the first progress line, not only with the summary (a stopped run told it
+    125 s late, outside check)."""
+    r = run(scene_from_toml(PINNED_ROD, ["simulation.adaptive=false", "simulation.dt=0.02",
+                                         "output.frame_interval=0.01",
+                                         "simulation.duration=0.04"]),
+            tmp_path, progress=True)
+    assert r.status == "ok", r.message
+    lines = capfd.readouterr().err.splitlines()
+    assert lines[0].startswith("rodnet: warning: simulation.dt = 0.02 s is longer than "
+                               "output.frame_interval")
+    assert any("is longer than output.frame_interval" in w for w in r.summary["warnings"])
