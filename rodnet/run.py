@@ -31,6 +31,7 @@ from scipy.sparse.csgraph import connected_components
 
 from rodnet import config
 from rodnet.config import Scene
+from rodnet.contact.bodies import overlapping_bodies
 from rodnet.contact.rigid_body import start_motion
 from rodnet.errors import SceneError, SimulationFailed
 from rodnet.integrate.explicit import integrate_explicit
@@ -893,6 +894,14 @@ def _scene_warnings(p: Prepared) -> list[str]:
                    "a suddenly applied moment is off (6 % of a rod's motion); set "
                    "simulation.rotary_inertia_scaling = false, or use an implicit integrator "
                    "with dt_max below the torsion period")
+    if p.system.contact is not None:
+        bodies = p.system.contact.bodies
+        for a, b in overlapping_bodies(bodies):
+            out.append(f"bodies[{a}] ({bodies.names[a]!r}) and bodies[{b}] ({bodies.names[b]!r}) "
+                       "overlap at the start: bodies do not touch each other "
+                       "(docs/contact.md), so a free one moves through the other as if it were "
+                       "not there; move them apart (fixed bodies may overlap to build one "
+                       "obstacle)")
     if p.scene.integrator == "midpoint" and p.system.contact is not None:
         out.append("simulation.integrator = 'midpoint' with [[bodies]]: the midpoint rule is not "
                    "energy-stable in contact (a penalty force that switches on within a step "

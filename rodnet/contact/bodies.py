@@ -22,8 +22,9 @@ from numpy.typing import NDArray
 
 from rodnet.config import BodySpec, ContactSpec, Scene
 from rodnet.contact.broadphase import contact_points
-from rodnet.contact.geometry import Box, Cylinder, Shape, Sphere
+from rodnet.contact.geometry import Box, Cylinder, Shape, Sphere, query_world
 from rodnet.contact.shapes import shape_from_scene
+from rodnet.contact.surfaces import surface_triangles
 from rodnet.contact.laws import ContactLaw
 from rodnet.contact.rigid_body import start_motion
 from rodnet.errors import SceneError
@@ -346,3 +347,30 @@ def check_start_clear(contact: BodyContact, structure: Structure, band: float = 
                          "not farther from its surface than the thread radius; move the body or "
                          "the threads apart (a gap above zero between the thread's surface and "
                          "the body's)")
+
+
+OVERLAP_ROUNDOFF = 1e-9
+"""A vertex deeper than this [m] inside another body makes the two overlap."""
+
+
+def overlapping_bodies(contact: BodyContact) -> list[tuple[int, int]]:
+    """The pairs ``(a, b)``, ``a < b``, of bodies that overlap at the start, at least one of them
+    free: a vertex of one's surface (:func:`~rodnet.contact.surfaces.surface_triangles`) inside
+    the other. Bodies do not touch each other, so a free body moves through the other; fixed
+    bodies may overlap to build one obstacle."""
+    corners = []
+    for b, shape in enumerate(contact.shapes):
+        vertices, _ = surface_triangles(shape)
+        corners.append(contact.position[b] + vertices @ contact.rotation[b].T)
+    pairs = []
+    for a in range(len(contact.shapes)):
+        for b in range(a + 1, len(contact.shapes)):
+            if not (contact.free[a] or contact.free[b]):
+                continue
+            # deeper than round-off: bodies resting on each other's faces do not overlap
+            inside = [query_world(contact.shapes[j], corners[i], contact.position[j],
+                                  contact.rotation[j]).distance < -OVERLAP_ROUNDOFF
+                      for i, j in ((a, b), (b, a))]
+            if any(bool(np.any(x)) for x in inside):
+                pairs.append((a, b))
+    return pairs

@@ -459,3 +459,56 @@ def test_a_thread_within_the_smoothing_band_at_the_start_is_refused() -> None:
     # search there
     prepare(scene_from_toml(THREAD_ABOVE_A_BALL.format(kind="dynamic", smoothing=0.009)))
     prepare(scene_from_toml(THREAD_ABOVE_A_BALL.format(kind="static", smoothing=0.1)))
+
+
+TWO_BOXES = """
+[simulation]
+duration = 0.01
+gravity = [0.0, 0.0, 0.0]
+[model]
+type = "lumped"
+[[materials]]
+name = "kevlar"
+density = 1440.0
+youngs_modulus = 7.0e10
+diameter = 0.001
+[[rods]]
+name = "r"
+material = "kevlar"
+points = [[10.0, 0, 0], [11.0, 0, 0]]
+elements = 2
+[[bodies]]
+name = "crate"
+shape = "box"
+size = [1.0, 1.0, 1.0]
+mass = 1.0
+fixed = {crate_fixed}
+[[bodies]]
+name = "floor"
+shape = "box"
+size = [4.0, 4.0, 1.0]
+position = [0.3, 0.2, {floor_z}]
+orientation_deg = [0.0, 0.0, 10.0]
+fixed = true
+[output]
+vtk = false
+"""
+"""A unit box above (or in) a fixed slab, a thread far from both."""
+
+
+@pytest.mark.parametrize("floor_z, crate_fixed, told", [
+    (-0.9, "false", True),     # sunk 0.1 m into the slab: it would fall through it unnoticed
+    (-1.0, "false", False),    # resting on the slab's face
+    (-1.5, "false", False),    # apart
+    (-0.9, "true", False)])    # fixed bodies may overlap to build one obstacle
+def test_a_free_body_overlapping_another_at_the_start_is_told(
+        tmp_path: Path, floor_z: float, crate_fixed: str, told: bool) -> None:
+    # bodies do not touch each other, and overlapping ones were accepted without a word
+    # (outside check)
+    r = run(scene_from_toml(TWO_BOXES.format(floor_z=floor_z, crate_fixed=crate_fixed)),
+            tmp_path, progress=False)
+    assert r.status == "ok", r.message
+    said = [w for w in r.summary["warnings"] if "overlap at the start" in w]
+    assert bool(said) == told
+    if told:
+        assert "bodies[0] ('crate') and bodies[1] ('floor')" in said[0]
