@@ -630,7 +630,7 @@ def _closed_rods(p: Prepared) -> list[str]:
 def _without_effect(p: Prepared) -> list[str]:
     """A warning for keys the scene sets to no effect: ``fix`` beside ``dofs``, ``[contact]``
     without bodies, a load that starts at or after the run's end (dynamic runs),
-    ``rotation_center`` without ``angular_velocity``."""
+    ``rotation_center`` without ``angular_velocity``, the inertia of a fixed body."""
     scene, out = p.scene, []
     for i, support in enumerate(scene.supports):
         if support.fix is not None and support.dofs is not None:
@@ -650,6 +650,10 @@ def _without_effect(p: Prepared) -> list[str]:
         if rod.rotation_center is not None and not any(rod.angular_velocity):
             out.append(f"rods[{i}].rotation_center has no effect without "
                        f"rods[{i}].angular_velocity")
+    for i, body in enumerate(scene.bodies):
+        if body.fixed and body.inertia is not None:
+            out.append(f"bodies[{i}].inertia has no effect: the body is fixed (a fixed body "
+                       "never moves; its mass is only reported)")
     return out
 
 

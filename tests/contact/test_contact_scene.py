@@ -512,3 +512,14 @@ def test_a_free_body_overlapping_another_at_the_start_is_told(
     assert bool(said) == told
     if told:
         assert "bodies[0] ('crate') and bodies[1] ('floor')" in said[0]
+
+
+def test_the_inertia_of_a_fixed_body_is_told_to_have_no_effect(tmp_path: Path) -> None:
+    # accepted without a word before (outside check)
+    text = TWO_BOXES.format(floor_z=-1.5, crate_fixed="true").replace(
+        "mass = 1.0\n", "mass = 1.0\ninertia = [0.2, 0.2, 0.2]\n")
+    r = run(scene_from_toml(text), tmp_path, progress=False)
+    assert r.status == "ok", r.message
+    assert [w for w in r.summary["warnings"] if "has no effect" in w] == [
+        "bodies[0].inertia has no effect: the body is fixed (a fixed body never moves; its mass "
+        "is only reported)"]
