@@ -495,7 +495,6 @@ energy balance may still owe to it: above BDF2's 1/3 and generalized-alpha's 0.3
 decay of the response to a load change."""
 
 
-
 @dataclass
 class GeneralizedAlpha(Scheme):
     """Lie-group generalized-alpha (C39), unknown ``vd1``; spectral radius ``rho_inf``.
