@@ -43,6 +43,7 @@ class Progress:
         self.start = time.perf_counter()
         self.last_draw = self.start if self.mode == "log" else 0.0
         self.next_fraction = LOG_FRACTION
+        self.last_line = (0.0, 0.0)   # wall time [s] and simulated time [s] at the last log line
 
     def __call__(self, t: float, dt: float, stats: StepStats) -> None:
         if self.mode == "off":
@@ -56,7 +57,12 @@ class Progress:
             while self.next_fraction <= fraction:
                 self.next_fraction += LOG_FRACTION
             self.last_draw = now
-            left = wall * (1.0 - fraction) / fraction if fraction > 0 else float("nan")
+            # at the pace since the last line: a run that slows down (short steps near a body,
+            # Newton's method at snaps) is not told the average's pace of its easy start
+            wall_before, t_before = self.last_line
+            left = (wall - wall_before) / (t - t_before) * (self.duration - t) if t > t_before \
+                else float("nan")
+            self.last_line = (wall, t)
             self._write(f"rodnet: t = {t:.4g} of {self.duration:.4g} s ({100 * fraction:.0f} %), "
                         f"{stats.steps} steps, dt = {dt:.2e} s, wall {wall:.0f} s, "
                         f"about {left:.0f} s left\n")

@@ -1324,3 +1324,26 @@ def test_what_the_scene_alone_decides_is_said_before_the_run(tmp_path: Path,
     assert lines[0].startswith("rodnet: warning: simulation.dt = 0.02 s is longer than "
                                "output.frame_interval")
     assert any("is longer than output.frame_interval" in w for w in r.summary["warnings"])
+
+
+def test_the_time_left_follows_the_pace_since_the_last_line(monkeypatch: pytest.MonkeyPatch
+                                                            ) -> None:
+    """A run that slows down is told the pace of its last stretch, not the average of its easy
+    start (an outside check found the estimate optimistic)."""
+    import io
+
+    from rodnet import progress
+    from rodnet.integrate.frames import StepStats
+
+    clock = {"now": 0.0}
+    monkeypatch.setattr(progress.time, "perf_counter", lambda: clock["now"])
+    out = io.StringIO()
+    bar = progress.Progress(10.0, enabled=None, stream=out)   # log lines: not a terminal
+    # 1 s of wall per simulated second for the first half, then 10 s per simulated second
+    for t in np.arange(0.25, 10.01, 0.25):
+        clock["now"] += 0.25 if t <= 5.0 else 2.5
+        bar(float(t), 0.25, StepStats())
+    lines = out.getvalue().splitlines()
+    at_60 = [line for line in lines if "(60 %)" in line][0]
+    # 4 simulated seconds left at 10 s each; the average (15 s for 6) would say 10 s
+    assert "about 40 s left" in at_60
