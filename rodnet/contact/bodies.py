@@ -320,12 +320,15 @@ def check_start_clear(contact: BodyContact, structure: Structure, band: float = 
             continue
         if float(gap[touching].min()) >= 0.0:
             closest = touching[int(np.argmin(gap[touching]))]
-            node = int(contact.segments[points.segment[closest], 0 if points.parameter[closest]
-                                        < 0.5 else 1])
-            label = f" ({names[node]})" if node in names else ""
+            a, c = (int(n) for n in contact.segments[points.segment[closest]])
+            xi = float(points.parameter[closest])
+            where = f"at {_node_name(a, names)}" if xi == 0.0 else \
+                f"at {_node_name(c, names)}" if xi == 1.0 else \
+                (f"on the segment from {_node_name(a, names)} to {_node_name(c, names)}, "
+                 f"{xi:.2g} of the way along,")
             raise SceneError("contact.smoothing", band,
                              f"puts body {contact.names[b]!r} in contact with the threads at the "
-                             f"start: near node {node}{label} the thread's surface is "
+                             f"start: {where} the thread's surface is "
                              f"{float(gap[closest]):.3g} m from the body's, within the blend "
                              "where the contact force already acts (N1); lower "
                              "contact.smoothing below the starting gaps, or move the body or "
@@ -349,19 +352,40 @@ def check_start_clear(contact: BodyContact, structure: Structure, band: float = 
                          "the body's)")
 
 
+def _node_name(node: int, names: dict[int, str]) -> str:
+    """``node N`` with its selector where it has one: ``node 5 (r:5)``."""
+    return f"node {node}" + (f" ({names[node]})" if node in names else "")
+
+
 OVERLAP_ROUNDOFF = 1e-9
 """A vertex deeper than this [m] inside another body makes the two overlap."""
 
 
+OVERLAP_SAMPLES = 20000
+"""About how many points of a body's surface :func:`overlapping_bodies` tests."""
+
+
+def _surface_samples(shape: Shape) -> FloatArray:
+    """Points (P, 3) on ``shape``'s surface in its body frame: on every triangle of
+    :func:`~rodnet.contact.surfaces.surface_triangles`, a barycentric grid of up to 8
+    divisions per edge (fewer for fine meshes, about :data:`OVERLAP_SAMPLES` points in all)."""
+    vertices, faces = surface_triangles(shape)
+    n = max(1, min(8, int(math.sqrt(OVERLAP_SAMPLES / max(len(faces), 1)))))
+    weights = np.array([(i, j, n - i - j) for i in range(n + 1) for j in range(n + 1 - i)],
+                       dtype=np.float64) / n
+    corners = np.asarray(vertices, dtype=np.float64)[np.asarray(faces)]   # (F, 3, 3)
+    return np.einsum("wk,fkd->fwd", weights, corners).reshape(-1, 3)
+
+
 def overlapping_bodies(contact: BodyContact) -> list[tuple[int, int]]:
     """The pairs ``(a, b)``, ``a < b``, of bodies that overlap at the start, at least one of them
-    free: a vertex of one's surface (:func:`~rodnet.contact.surfaces.surface_triangles`) inside
-    the other. Bodies do not touch each other, so a free body moves through the other; fixed
-    bodies may overlap to build one obstacle."""
+    free: a point of one's surface (:func:`_surface_samples`) inside the other. Bodies do not
+    touch each other, so a free body moves through the other; fixed bodies may overlap to
+    build one obstacle. Surface points, not corners alone: two boxes with faces in one plane
+    overlap where no corner of either is inside the other (outside check)."""
     corners = []
     for b, shape in enumerate(contact.shapes):
-        vertices, _ = surface_triangles(shape)
-        corners.append(contact.position[b] + vertices @ contact.rotation[b].T)
+        corners.append(contact.position[b] + _surface_samples(shape) @ contact.rotation[b].T)
     pairs = []
     for a in range(len(contact.shapes)):
         for b in range(a + 1, len(contact.shapes)):
