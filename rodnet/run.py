@@ -31,7 +31,6 @@ from scipy.sparse.csgraph import connected_components
 
 from rodnet import config
 from rodnet.config import Scene
-from rodnet.contact.bodies import overlapping_bodies
 from rodnet.contact.rigid_body import start_motion
 from rodnet.errors import SceneError, SimulationFailed
 from rodnet.integrate.explicit import integrate_explicit
@@ -900,7 +899,7 @@ def _scene_warnings(p: Prepared) -> list[str]:
                    "with dt_max below the torsion period")
     if p.system.contact is not None:
         bodies = p.system.contact.bodies
-        for a, b in overlapping_bodies(bodies):
+        for a, b in bodies.overlaps:
             out.append(f"bodies[{a}] ({bodies.names[a]!r}) and bodies[{b}] ({bodies.names[b]!r}) "
                        "overlap at the start: bodies do not touch each other "
                        "(docs/contact.md), so a free one moves through the other as if it were "

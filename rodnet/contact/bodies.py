@@ -154,6 +154,12 @@ class BodyContact:
         return len(self.names)
 
     @cached_property
+    def overlaps(self) -> list[tuple[int, int]]:
+        """:func:`overlapping_bodies` at the start pose, computed once (a run says it before and
+        after it; two meshes of 82,000 triangles take about a second)."""
+        return overlapping_bodies(self)
+
+    @cached_property
     def bound_radius(self) -> FloatArray:
         """(B,) radius of each body's bounding sphere about its centre of mass [m]."""
         return np.array([np.linalg.norm(np.abs(s.bounds).max(axis=0)) for s in self.shapes])
@@ -368,8 +374,12 @@ OVERLAP_SAMPLES = 20000
 def _surface_samples(shape: Shape) -> FloatArray:
     """Points (P, 3) on ``shape``'s surface in its body frame: on every triangle of
     :func:`~rodnet.contact.surfaces.surface_triangles`, a barycentric grid of up to 8
-    divisions per edge (fewer for fine meshes, about :data:`OVERLAP_SAMPLES` points in all)."""
+    divisions per edge (fewer for fine meshes, about :data:`OVERLAP_SAMPLES` points in all;
+    a mesh of more triangles than that: its vertices, thinned to about as many)."""
     vertices, faces = surface_triangles(shape)
+    if len(faces) > OVERLAP_SAMPLES:   # a fine mesh: its vertices, thinned to about as many
+        vertices = np.asarray(vertices, dtype=np.float64)
+        return vertices[::max(1, len(vertices) // OVERLAP_SAMPLES)]
     n = max(1, min(8, int(math.sqrt(OVERLAP_SAMPLES / max(len(faces), 1)))))
     weights = np.array([(i, j, n - i - j) for i in range(n + 1) for j in range(n + 1 - i)],
                        dtype=np.float64) / n
