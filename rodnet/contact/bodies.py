@@ -346,12 +346,11 @@ def check_start_clear(contact: BodyContact, structure: Structure, band: float = 
             p = touching[node_points]
             nodes = np.where(points.parameter[p] == 0.0, contact.segments[points.segment[p], 0],
                              contact.segments[points.segment[p], 1])
-            node, what = int(nodes.min()), "node"
+            node, what = int(nodes.min()), ""
         else:
-            node, what = int(ends.min()), "a segment from node"
-        label = f" ({names[node]})" if node in names else ""
+            node, what = int(ends.min()), "a segment from "
         raise SceneError(f"bodies[{b}]", contact.names[b],
-                         f"starts in contact with the threads: {what} {node}{label} at "
+                         f"starts in contact with the threads: {what}{_node_name(node, names)} at "
                          f"{np.array2string(x[node], precision=4)} m is inside the body or "
                          "not farther from its surface than the thread radius; move the body or "
                          "the threads apart (a gap above zero between the thread's surface and "
@@ -393,16 +392,15 @@ def overlapping_bodies(contact: BodyContact) -> list[tuple[int, int]]:
     touch each other, so a free body moves through the other; fixed bodies may overlap to
     build one obstacle. Surface points, not corners alone: two boxes with faces in one plane
     overlap where no corner of either is inside the other (outside check)."""
-    corners = []
-    for b, shape in enumerate(contact.shapes):
-        corners.append(contact.position[b] + _surface_samples(shape) @ contact.rotation[b].T)
+    samples = [contact.position[b] + _surface_samples(shape) @ contact.rotation[b].T
+               for b, shape in enumerate(contact.shapes)]
     pairs = []
     for a in range(len(contact.shapes)):
         for b in range(a + 1, len(contact.shapes)):
             if not (contact.free[a] or contact.free[b]):
                 continue
             # deeper than round-off: bodies resting on each other's faces do not overlap
-            inside = [query_world(contact.shapes[j], corners[i], contact.position[j],
+            inside = [query_world(contact.shapes[j], samples[i], contact.position[j],
                                   contact.rotation[j]).distance < -OVERLAP_ROUNDOFF
                       for i, j in ((a, b), (b, a))]
             if any(bool(np.any(x)) for x in inside):

@@ -41,32 +41,6 @@ print(json.dumps(compiled))
 """
 """Runs the scene file ``argv[2]`` into ``argv[1]`` and prints what numba compiled."""
 
-CANTILEVER_SCENE = """
-[simulation]
-type = "static"
-load_steps = 4
-[model]
-type = "cosserat"
-axial = "linear"
-[[materials]]
-name = "steel"
-density = 7800.0
-youngs_modulus = 2.0e11
-poisson_ratio = 0.3
-diameter = 0.01
-[[rods]]
-name = "beam"
-material = "steel"
-points = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]
-elements = 20
-[[supports]]
-node = "beam:start"
-fix = "clamp"
-[[loads]]
-node = "beam:end"
-force = [0.0, 0.0, -200.0]
-"""
-"""The static cantilever of getting started (docs/getting_started.md)."""
 
 
 def test_compile_refuses_a_bad_process_count(capsys: pytest.CaptureFixture[str]) -> None:
@@ -90,7 +64,11 @@ def test_after_compile_the_demo_compiles_nothing(tmp_path: Path) -> None:
     assert json.loads(probe.stdout.splitlines()[-1]) == []
     # nor the static cantilever of getting started (it compiled the sparse LU and the loads'
     # time factors)
-    (tmp_path / "cantilever.toml").write_text(CANTILEVER_SCENE)
+    from tests.test_docs_examples import _examples
+
+    page = (Path(__file__).resolve().parents[2] / "docs" / "getting_started.md").read_text()
+    [scene] = [b.text for b in _examples().blocks(page) if b.label == "cantilever.toml"]
+    (tmp_path / "cantilever.toml").write_text(scene)
     probe = subprocess.run([sys.executable, "-c", CANTILEVER, str(tmp_path / "cantilever"),
                             str(tmp_path / "cantilever.toml")],
                            env=env, cwd=tmp_path, capture_output=True, text=True)
