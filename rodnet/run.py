@@ -278,18 +278,30 @@ def _check_supported(system: ThreadSystem, structure: Structure, scene: Scene) -
 
 def _energy_checks(p: Prepared) -> list[FrameCheck]:
     """The energy guard (:func:`~rodnet.io.recorder.energy_guard`) of a dynamic run, whatever
-    its integrator, whose energy nothing can raise: no loads (point or line) and a gravity, if any,
-    constant in time (its potential then counts, and the bodies' weight with it). Symplectic
-    Euler's energy swings by about ``omega h / 2`` of itself on a resolved mode (a spring at a
-    third of its period per step: 0.86 to 1.19 of the start, bounded), so the explicit
-    integrator is allowed to double its energy, or to gain as much as it has in motion under
-    gravity, before it is deemed unstable; the others a tenth of that."""
-    scene = p.scene
-    sim = scene.simulation
-    if sim.type != "dynamic" or scene.loads or scene.line_loads or sim.gravity_scheduled:
+    its integrator, whose energy nothing can raise: every force that does work has a
+    potential (:func:`_worked_by`), and the potential then counts. Symplectic Euler's energy
+    swings by about ``omega h / 2`` of itself on a resolved mode (a spring at a third of its
+    period per step: 0.86 to 1.19 of the start, bounded), so the explicit integrator is allowed
+    to double its energy, or to gain as much as it has in motion where forces do work, before
+    it is deemed unstable; the others a tenth of that."""
+    forces = _worked_by(p.scene)
+    if forces is None:
         return []
-    return [energy_guard(growth=1.0 if scene.integrator == "explicit" else 0.1,
-                         potential=bool(any(sim.gravity)))]
+    return [energy_guard(growth=1.0 if p.scene.integrator == "explicit" else 0.1,
+                         potential=bool(forces), forces=forces)]
+
+
+def _worked_by(scene: Scene) -> str | None:
+    """What does work on a dynamic scene, where all of it has a potential that the frames'
+    ``potential_energy`` counts: ``""`` (nothing), ``"gravity"``, ``"constant loads"`` or
+    ``"gravity and constant loads"``; None for a static scene, or where a force without a
+    potential does work (a load or gravity with a time factor, a dead moment)."""
+    sim = scene.simulation
+    loads = [*scene.loads, *scene.line_loads]
+    if sim.type != "dynamic" or sim.gravity_scheduled or not all(l.conservative for l in loads):
+        return None
+    return " and ".join(name for name, acts in (("gravity", any(sim.gravity)),
+                                                ("constant loads", bool(loads))) if acts)
 
 
 # --- the integrators, by name ------------------------------------------------------------
@@ -735,18 +747,16 @@ def _explicit_steps(p: Prepared) -> float:
 
 
 def _unforced_energy(p: Prepared, arrays: dict[str, NDArray[Any]]
-                     ) -> tuple[NDArray[Any], NDArray[Any], bool] | None:
-    """The saved frames' energy (:func:`rodnet.io.recorder.mechanical_energy`, with gravity's
-    potential where gravity acts) (F,), its part in motion (F,) and whether gravity acts, for a
-    dynamic run on which nothing but a constant gravity does work (no loads); None otherwise,
-    or with fewer than two frames."""
-    scene, sim = p.scene, p.scene.simulation
-    if sim.type != "dynamic" or scene.loads or scene.line_loads or sim.gravity_scheduled or \
-            "kinetic_energy" not in arrays or len(arrays["time"]) < 2:
+                     ) -> tuple[NDArray[Any], NDArray[Any], str] | None:
+    """The saved frames' energy (:func:`rodnet.io.recorder.mechanical_energy`, with the
+    potential of what does work) (F,), its part in motion (F,) and what does work
+    (:func:`_worked_by`), for a dynamic run on which only forces with a potential do work;
+    None otherwise, or with fewer than two frames."""
+    forces = _worked_by(p.scene)
+    if forces is None or "kinetic_energy" not in arrays or len(arrays["time"]) < 2:
         return None
-    gravity = bool(any(sim.gravity))
-    energy, motion = mechanical_energy(arrays, gravity)
-    return energy, motion, gravity
+    energy, motion = mechanical_energy(arrays, bool(forces))
+    return energy, motion, forces
 
 
 ENERGY_RISE = 0.05
@@ -766,21 +776,21 @@ def _energy_rise(p: Prepared, arrays: dict[str, NDArray[Any]]) -> list[str]:
     unforced = _unforced_energy(p, arrays)
     if unforced is None:
         return []
-    energy, motion, gravity = unforced
+    energy, motion, forces = unforced
     gain = energy_gain(energy, energy[0])
-    if gravity:
+    if forces:
         rise = float(np.max(gain / np.maximum(np.maximum.accumulate(motion),
                                               np.finfo(float).tiny)))
     else:
         rise = float(gain.max() / energy[0]) if energy[0] > 0.0 else 0.0
     if not rise > ENERGY_RISE:
         return []
-    measure = ("the energy, gravity's potential included, rose by "
-               f"{100.0 * rise:.3g} % of the largest energy in motion") if gravity else \
+    measure = (f"the energy, the potential of {forces} included, rose by "
+               f"{100.0 * rise:.3g} % of the largest energy in motion") if forces else \
         f"the kinetic and elastic energy rose by {100.0 * rise:.3g} %"
     measure += " over the saved frames"   # a failed run's message tells the step's own figure
     told = f"{measure} although nothing does work on the structure" + \
-        (" but gravity" if gravity else "")
+        (f" but {forces}" if forces else "")
     if scene.integrator != "explicit":
         return [f"{told}: simulation.integrator = "
                 f"'{scene.integrator}' is not energy-stable where its steps leave fast events "
@@ -819,14 +829,14 @@ def _energy_loss(p: Prepared, arrays: dict[str, NDArray[Any]]) -> list[str]:
     unforced = _unforced_energy(p, arrays)
     if scene.integrator not in DISSIPATIVE_SCHEMES or dissipates or unforced is None:
         return []
-    energy, motion, gravity = unforced
-    scale = float(np.max(motion)) if gravity else float(energy[0])
+    energy, motion, forces = unforced
+    scale = float(np.max(motion)) if forces else float(energy[0])
     loss = float(energy[0] - energy[-1]) / scale if scale > 0.0 else 0.0
     if not loss > ENERGY_LOSS:
         return []
     keeps = "'explicit' keeps" if scene.bodies else "'midpoint' and 'explicit' keep"
     return [f"the energy fell by {100.0 * loss:.3g} % "
-            + ("of the largest energy in motion " if gravity else "")
+            + ("of the largest energy in motion " if forces else "")
             + "although nothing in the scene dissipates it (no materials.viscosity"
             + (", contact.damping or contact.friction" if scene.bodies else "")
             + f"): simulation.integrator = '{scene.integrator}' damps what its steps do not "

@@ -126,18 +126,20 @@ def energy_gain(energy: Any, start: float) -> Any:
     return np.where(gain > 1e-9 + 1e-9 * abs(start), gain, 0.0)
 
 
-def energy_guard(growth: float = 0.1, potential: bool = False) -> FrameCheck:
+def energy_guard(growth: float = 0.1, potential: bool = False,
+                 forces: str = "gravity") -> FrameCheck:
     """A check that stops a run whose energy (:func:`mechanical_energy`), which nothing raises,
     rises.
 
     Without ``potential``, for scenes with nothing that does work on them (no gravity, no
     loads): the energy may not rise above the first frame's by more than ``growth`` of it.
-    With ``potential``, for scenes whose only load is a constant gravity: the energy counts
-    gravity's potential and may not rise above the first frame's by more than ``growth`` of
-    the largest energy in motion of the frames so far (the potential has no natural zero). An
-    integrator that is not stable on a stiff nonlinear problem (the midpoint rule with contact
-    at a large fixed step, symplectic Euler on a light rope pressed on a drum) would
-    otherwise report a diverging run as done."""
+    With ``potential``, for scenes where only forces with a potential do work (``forces``, for
+    the message: a constant gravity, loads constant in time): the energy counts their
+    potential and may not rise above the first frame's by more than ``growth`` of the largest
+    energy in motion of the frames so far (the potential has no natural zero). An integrator
+    that is not stable on a stiff nonlinear problem (the midpoint rule with contact at a large
+    fixed step, symplectic Euler on a light rope pressed on a drum) would otherwise report a
+    diverging run as done."""
     start: list[float] = []
     largest = [0.0]
 
@@ -150,8 +152,8 @@ def energy_guard(growth: float = 0.1, potential: bool = False) -> FrameCheck:
         largest[0] = max(largest[0], motion)
         allowed = growth * (largest[0] if potential else start[0])
         if energy_gain(now, start[0]) > allowed:
-            cause = "gravity is the only force that does work on it" if potential \
-                else "nothing does work on the structure"
+            cause = f"nothing but {forces}, whose potential is counted, does work on the " \
+                "structure" if potential else "nothing does work on the structure"
             raise SimulationFailed(
                 f"the energy grew from {start[0]:.6g} J to {now:.6g} J by t = {t:.6g} s although "
                 f"{cause}: the time integration is unstable at this step")
