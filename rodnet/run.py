@@ -482,12 +482,29 @@ def run(scene: Scene, directory: str | Path | None = None, *, progress: bool | N
                     summary[key].update(value)
                 else:
                     summary[key] = value
+            _contact_peaks(summary["metrics"], stats)
             write_npz(out / "result.npz", arrays)
             write_summary(out / "summary.json", summary)
     result = RunResult(status, message, out, summary, arrays)
     if after is not None:
         after(result)
     return result
+
+
+CONTACT_PEAKS = ("max_contact_force", "max_contact_count", "max_contact_depth")
+"""The contact metrics that the integrators also track over their steps."""
+
+
+def _contact_peaks(metrics: dict[str, Any], stats: StepStats) -> None:
+    """The contact metrics of a run with bodies over every step, not the saved frames only
+    (those stay as ``<name>_at_frames``): an impact between two frames had read as no contact
+    at all while friction took 271 J of an 11 x 11 net's energy (outside check)."""
+    if CONTACT_PEAKS[0] not in metrics:
+        return
+    for key in CONTACT_PEAKS:
+        at_frames = metrics[key]
+        metrics[key] = max(at_frames, type(at_frames)(getattr(stats, key)))
+        metrics[f"{key}_at_frames"] = at_frames
 
 
 class Terminated(KeyboardInterrupt):

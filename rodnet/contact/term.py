@@ -94,11 +94,6 @@ class ContactTerm:
         relative to the body when it moved from ``old_motion``."""
         return step_travel(self.bodies, motion, x_old, x_new, old_motion)
 
-    def step_work(self, x: FloatArray, v: FloatArray, dt: float, motion: BodyMotion) -> float:
-        """Friction work of an accepted step of ``dt`` ending at ``x``, ``v`` [J]: the friction
-        power at the end of the step times ``dt``."""
-        return dt * contact_state(self.bodies, motion, x, v).friction_power
-
     def energy(self, x: FloatArray, motion: BodyMotion) -> dict[str, float]:
         """The bodies' ``kinetic`` and gravity ``potential`` energy and the ``contact`` energy
         in the penalty springs (N4) [J], to add to the threads'."""

@@ -117,6 +117,7 @@ def integrate_explicit(system: System, state: State, times: NDArray[np.float64],
                 if done.steps:
                     stats.record_steps(done.steps, done.h_min, done.h_max)
                 peak = max(peak, done.peak)
+                stats.record_contact(done.contact_force, done.contact_count, done.contact_depth)
             else:
                 stats.steps += done.steps
                 raise SimulationFailed(_failure(done, h, control, problem))

@@ -5,10 +5,23 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Callable, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
+
+
+class AcceptedStep(NamedTuple):
+    """What one accepted step adds to a run's records (:meth:`StepStats.record_accepted`):
+    ``friction_work`` [J] over it, and at its end the ``max_tension`` [N], the sum of the
+    contact point forces ``contact_force`` [N], their number ``contact_count`` and the deepest
+    thread surface in a body ``contact_depth`` [thread radii]."""
+
+    friction_work: float
+    max_tension: float
+    contact_force: float
+    contact_count: int
+    contact_depth: float
 
 
 @dataclass
@@ -28,10 +41,27 @@ class StepStats:
     dt_max: float = 0.0
     max_element_rotation: float | None = None
     """Largest element relative rotation |psi| [rad] over every step (explicit rods only)."""
+    max_contact_force: float = 0.0
+    """Largest sum of the contact point forces [N] over the steps (with bodies)."""
+    max_contact_count: int = 0
+    """Most contact points at a step (with bodies)."""
+    max_contact_depth: float = 0.0
+    """Deepest a thread's surface went into a body at a step [thread radii] (with bodies)."""
     extra: dict[str, float] = field(default_factory=dict)
 
     def record_step(self, dt: float, count: int = 1) -> None:
         self.record_steps(count, dt, dt)
+
+    def record_accepted(self, step: AcceptedStep) -> None:
+        """Fold an accepted step's record into the run's (the integrators that step in Python)."""
+        self.max_tension = max(self.max_tension, step.max_tension)
+        self.record_contact(step.contact_force, step.contact_count, step.contact_depth)
+
+    def record_contact(self, force: float, count: int, depth: float) -> None:
+        """Fold one step's (or a run of steps') contact peaks into the run's."""
+        self.max_contact_force = max(self.max_contact_force, force)
+        self.max_contact_count = max(self.max_contact_count, int(count))
+        self.max_contact_depth = max(self.max_contact_depth, depth)
 
     def record_steps(self, count: int, dt_min: float, dt_max: float) -> None:
         """``count`` accepted steps, the shortest ``dt_min`` and the longest ``dt_max`` [s]."""

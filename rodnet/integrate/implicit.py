@@ -935,7 +935,9 @@ def integrate_implicit(scheme: Scheme, state: State, times: NDArray[np.float64],
             h = min(h, newton_limit)
             if adaptive:
                 h = min(h, system.step_limit(motion.v))
-            state.friction_work += system.step_work(motion.q, motion.v, h_try)
+            record = system.accepted_step(motion.q, motion.v, h_try)
+            state.friction_work += record.friction_work
+            stats.record_accepted(record)
             if adaptive and not (controlled and np.isfinite(error)):  # growth on easy Newton
                 easy = easy + 1 if result.iterations <= 4 else 0
                 if easy >= 2 and h_try == h:

@@ -78,6 +78,10 @@ def integrate_rk45(system: System, state: State, times: NDArray[np.float64], rto
                 raise SimulationFailed(
                     f"RK45 failed at t = {solver.t:.6g} s: {message or 'non-finite state'}")
             stats.record_step(solver.step_size)
+            stats.record_accepted(system.accepted_step(
+                Configuration(frame(solver.t) + solver.y[:3 * n].reshape(n, 3)),
+                (u0 + solver.y[3 * n:].reshape(n, 3)).ravel(),
+                solver.step_size))   # the largest tension over the steps, not the frames only
             dense = solver.dense_output()
             while next_frame < len(times) and times[next_frame] <= solver.t + 1e-12:
                 at = dense(times[next_frame]) if times[next_frame] < solver.t else solver.y

@@ -17,6 +17,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
+from rodnet.integrate.frames import AcceptedStep
 from rodnet.kernels.explicit import ExplicitProblem, StepControl
 from rodnet.state import Configuration, Linearization, State, StepRate
 
@@ -137,9 +138,10 @@ class System(Protocol):
         limit (above 1 the step is retried shorter); 0 without bodies."""
         ...
 
-    def step_work(self, q: Configuration, v: FloatArray, dt: float) -> float:
-        """Work friction dissipates over an accepted step of ``dt`` ending at ``q``, ``v`` [J];
-        0 without bodies."""
+    def accepted_step(self, q: Configuration, v: FloatArray, dt: float) -> AcceptedStep:
+        """What an accepted step of ``dt`` ending at ``q``, ``v`` adds to the run's records:
+        the work friction dissipated over it [J] (0 without bodies), and the largest tension
+        and the contact totals at its end."""
         ...
 
     # --- explicit integrator and RK45 --------------------------------------------------------

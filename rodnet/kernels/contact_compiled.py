@@ -344,6 +344,9 @@ def accumulate_contact(x, v, force, dt, data, body_position, body_rotation, body
         Sum of the magnitudes of the point forces [N].
     contacts : int
         Points with a positive normal force.
+    deepest : float
+        The largest depth of a thread's surface in a body, in thread radii (0 when none is in
+        one).
     allowed_step : float
         The largest step [s] that keeps every segment near a body within its travel limit
         (inf when none is limiting, or ``dt`` <= 0).
@@ -354,7 +357,7 @@ def accumulate_contact(x, v, force, dt, data, body_position, body_rotation, body
      slip_velocity, points_per_segment) = data
     active, taken, body_force, body_moment, clearance, _ = scratch
     n_seg, n_pts = segments.shape[0], points_per_segment
-    power, total, contacts, allowed = 0.0, 0.0, 0, np.inf
+    power, total, contacts, deepest, allowed = 0.0, 0.0, 0, 0.0, np.inf
     stack = np.empty(STACK_DEPTH, np.int64)
     w, nl, nw, pl = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
     la, lb, vp, arm = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
@@ -411,6 +414,7 @@ def accumulate_contact(x, v, force, dt, data, body_position, body_rotation, body
                 d = _distance(kind[bi], body_size[bi], mesh_root[bi], pl, nl, tri, lower, upper,
                               left, right, start, count, order, face_normal, edge_normal,
                               corner_normal, stack, w)
+                deepest = max(deepest, (radius[s] - d) / radius[s])
                 for k in range(3):
                     arm[k] = (1.0 - xi) * x[a, k] + xi * x[b, k] - p[k]
                 magnitude, dissipation = _point_force(
@@ -425,7 +429,7 @@ def accumulate_contact(x, v, force, dt, data, body_position, body_rotation, body
         clearance[bi] = gap_min
         for i in range(n_marked):
             taken[marked[i]] = False
-    return power, total, contacts, allowed
+    return power, total, contacts, deepest, allowed
 
 
 @numba.njit(cache=True)

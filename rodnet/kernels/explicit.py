@@ -162,7 +162,10 @@ class Marched(NamedTuple):
     travel-limited step fell below ``min_dt``), the time reached ``t`` [s], ``steps`` taken,
     force ``evaluations`` (steps redone included), the shortest and longest steps ``h_min``,
     ``h_max`` [s] (a step cut to land on the frame left out), the largest axial force ``peak``
-    [N] and element rotation ``phi_max`` [rad], and the ``friction_work`` [J]."""
+    [N] and element rotation ``phi_max`` [rad], the ``friction_work`` [J], and over the steps'
+    start states the largest sum of contact point forces ``contact_force`` [N], number of
+    contact points ``contact_count`` and depth of a thread's surface in a body
+    ``contact_depth`` [thread radii]."""
 
     status: int
     t: float
@@ -173,6 +176,9 @@ class Marched(NamedTuple):
     peak: float
     phi_max: float
     friction_work: float
+    contact_force: float
+    contact_count: int
+    contact_depth: float
 
 
 @numba.njit(inline="always")
@@ -495,6 +501,8 @@ def _loop(with_bodies: bool):  # type: ignore[no-untyped-def]
         c, cs, bm = p.contact, s.contact, p.body_mass
         has_bodies = c.kind.shape[0] > 0
         peak, phi_max, h_min, h_max, work = 0.0, 0.0, np.inf, 0.0, 0.0
+        touch, touching, deep = 0.0, 0, 0.0    # contact's largest force, points, depth
+        total, points, depth = 0.0, 0, 0.0
         steps, evaluations = 0, 0
         node_speed = largest_speed(v) if with_bodies and has_bodies else 0.0
         fixed = not control.rotation_controlled
@@ -516,7 +524,7 @@ def _loop(with_bodies: bool):  # type: ignore[no-untyped-def]
                 remaining = t_end - t
                 last = h_full >= remaining * (1.0 - 1e-9)
                 h = remaining if last else h_full
-            power = 0.0
+            power, total, points, depth = 0.0, 0.0, 0, 0.0
             if with_bodies and has_bodies and select_bodies(
                     h, node_speed, bodies.velocity, bodies.omega, c.bound_radius, cs.travelled,
                     cs.clearance, cs.active, cs.body_force, cs.body_moment):
@@ -524,14 +532,14 @@ def _loop(with_bodies: bool):  # type: ignore[no-untyped-def]
                 if h > control.near_dt * (1.0 + 1e-12):   # (E5): contact needs the shorter step
                     new_base = control.near_dt
                 else:
-                    power, _, _, allowed = accumulate_contact(
+                    power, total, points, depth, allowed = accumulate_contact(
                         x, v, s.f_node, h, c, bodies.position, bodies.rotation, bodies.velocity,
                         bodies.omega, cs)
                     if allowed < h:                       # (E3): a point would jump too far
                         new_base = min(base, 0.9 * allowed)
                         if new_base < control.min_dt:
                             return Marched(2, t, steps, evaluations, h_min, h_max, peak, phi_max,
-                                           work)
+                                           work, touch, touching, deep)
                 if new_base != base:                      # redo the step from the same state
                     forget_clearance(cs.active, cs.clearance)
                     base = new_base
@@ -541,6 +549,7 @@ def _loop(with_bodies: bool):  # type: ignore[no-untyped-def]
                     continue
             peak = max(peak, step_peak)
             phi_max = max(phi_max, phi)
+            touch, touching, deep = max(touch, total), max(touching, points), max(deep, depth)
             h_min = min(h_min, h_full)
             h_max = max(h_max, h_full)
             work += h * power
@@ -563,10 +572,12 @@ def _loop(with_bodies: bool):  # type: ignore[no-untyped-def]
             if not finite:
                 if fixed:
                     t = t_seg + k * h_seg
-                return Marched(1, t, steps, evaluations, h_min, h_max, peak, phi_max, work)
+                return Marched(1, t, steps, evaluations, h_min, h_max, peak, phi_max, work,
+                               touch, touching, deep)
         if fixed:
             t = t_end
-        return Marched(0, t, steps, evaluations, h_min, h_max, peak, phi_max, work)
+        return Marched(0, t, steps, evaluations, h_min, h_max, peak, phi_max, work, touch,
+                       touching, deep)
 
     return march_loop
 
@@ -652,8 +663,10 @@ def march_nodes(x, v, t0, t_end, n, h, problem, f_node):  # pragma: no cover - c
             if not (math.isfinite(x[i, 0]) and math.isfinite(x[i, 1]) and math.isfinite(x[i, 2])):
                 bad += 1
         if bad:
-            return Marched(1, t0 + (k + 1) * h, k + 1, k + 1, h, h, peak, 0.0, 0.0)
-    return Marched(0, t_end, n, n, h if n else np.inf, h if n else 0.0, peak, 0.0, 0.0)
+            return Marched(1, t0 + (k + 1) * h, k + 1, k + 1, h, h, peak, 0.0, 0.0, 0.0, 0,
+                           0.0)
+    return Marched(0, t_end, n, n, h if n else np.inf, h if n else 0.0, peak, 0.0, 0.0, 0.0,
+                   0, 0.0)
 
 
 @numba.njit(cache=True)

@@ -288,6 +288,10 @@ class LumpedModel:
         return {"positions": np.array(q.x), "velocities": np.array(vv),
                 "tension": self.segment_states(q.x, vv)[0]}
 
+    def axial_force(self, q: Configuration, v: FloatArray) -> FloatArray:
+        """Axial force of every segment [N], (E,): the frames' ``tension``."""
+        return self.segment_states(q.x, np.asarray(v).reshape(-1, 3))[0]
+
     def segment_states(self, x: FloatArray, v: FloatArray) -> tuple[FloatArray, float]:
         """Axial force of every segment [N] (E,), as :meth:`tension`, and the elastic energy
         they store [J], (S6), in one compiled pass (what every saved frame needs)."""

@@ -30,7 +30,9 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from rodnet.assembly import IterationMatrix, SparsityPattern
+from rodnet.contact.forces import contact_state
 from rodnet.contact.term import ContactTerm
+from rodnet.integrate.frames import AcceptedStep
 from rodnet.kernels import so3, so3_compiled
 from rodnet.kernels.contact_compiled import no_contact
 from rodnet.kernels.cosserat_compiled import RodElements
@@ -95,6 +97,10 @@ class ThreadModel(Protocol):
     def explicit_terms(self) -> tuple[Nodes, Rotations, Loads, Segments, Hinges, RodElements]: ...
 
     def frame_arrays(self, q: Configuration, v: FloatArray) -> dict[str, Any]: ...
+
+    def axial_force(self, q: Configuration, v: FloatArray) -> FloatArray:
+        """The frames' ``tension`` [N] of every element or segment (E,)."""
+        ...
 
     def energy(self, q: Configuration, v: FloatArray, t: float) -> dict[str, float]: ...
 
@@ -478,11 +484,15 @@ class ThreadSystem:
         new = self.contact.motion(q_new.body_x, q_new.body_quat, zero, zero)
         return self.contact.step_travel(q_old.x, q_new.x, new, old)
 
-    def step_work(self, q: Configuration, v: FloatArray, dt: float) -> float:
-        if self.contact is None:
-            return 0.0
+    def accepted_step(self, q: Configuration, v: FloatArray, dt: float) -> AcceptedStep:
         n3 = 3 * self.model.n_nodes
-        return self.contact.step_work(q.x, v[:n3].reshape(-1, 3), dt, self._motion(q, v))
+        tension = float(self.model.axial_force(q, v[:self.model.n_dof]).max(initial=0.0))
+        if self.contact is None:
+            return AcceptedStep(0.0, tension, 0.0, 0, 0.0)
+        state = contact_state(self.contact.bodies, self._motion(q, v), q.x,
+                              v[:n3].reshape(-1, 3))
+        return AcceptedStep(dt * state.friction_power, tension, state.total_force, state.count,
+                            state.sunk)
 
     # --- the System protocol: the explicit loop ------------------------------------------
 

@@ -133,13 +133,14 @@ def contact_matrix(model, blocks):
 
 def test_compiled_contact_matches_the_numpy_oracle(model) -> None:
     x, v = near_surfaces(model, (-0.008, 0.012))
-    force, body_force, (power, total, count, allowed) = compiled(model, x, v)
+    force, body_force, (power, total, count, deepest, allowed) = compiled(model, x, v)
     expected = nodal_force(*numpy_contact(model), x, v)
     state = contact_state(*numpy_contact(model), x, v)
     assert 100 < count == state.count
     np.testing.assert_allclose(force, expected, rtol=1e-10, atol=1e-10 * np.abs(expected).max())
     np.testing.assert_allclose(body_force, state.body_force, rtol=1e-10, atol=1e-9)
     assert total == pytest.approx(state.total_force, rel=1e-10)
+    assert deepest == pytest.approx(state.sunk, rel=1e-10) and deepest > 0
     assert power == pytest.approx(state.friction_power, rel=1e-10) and power > 0
     assert allowed == np.inf
     # every body takes part, and the reaction balances the nodal forces

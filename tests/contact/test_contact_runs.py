@@ -127,7 +127,9 @@ def test_results_hold_bodies_and_contact_series(tmp_path: Path) -> None:
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["bodies"] == {"table": 0}
     assert len(summary["contact"]["force"]) == len(summary["contact"]["time"]) == frames
-    assert summary["metrics"]["max_contact_force"] == pytest.approx(data["contact_force"].max())
+    metrics = summary["metrics"]
+    assert metrics["max_contact_force_at_frames"] == pytest.approx(data["contact_force"].max())
+    assert metrics["max_contact_force"] >= metrics["max_contact_force_at_frames"]  # every step
     assert summary["scene"]["bodies"][0]["shape"] == "box"
     bodies = sorted((tmp_path / "vtk").glob("body_0_*.vtu"))
     assert len(bodies) == frames
@@ -433,8 +435,12 @@ def test_a_thread_sunk_into_a_body_is_reported_and_warned_of() -> None:
                   .replace("duration = 0.0005", "duration = 0.0008"))
     depth = soft.arrays["contact_depth"]
     assert depth[-1] == pytest.approx(1e-10 * 9810.0 / 0.1 / 1e-6, rel=0.05)
-    assert soft.summary["metrics"]["max_contact_depth"] == pytest.approx(depth.max())
+    assert soft.summary["metrics"]["max_contact_depth_at_frames"] == pytest.approx(depth.max())
+    assert soft.summary["metrics"]["max_contact_depth"] >= depth.max()   # over every step
     assert any("sank" in w and "contact.stiffness = 0.1" in w for w in soft.summary["warnings"])
     firm = run_ok(THIN_THREAD_ON_A_BOX)
-    assert firm.summary["metrics"]["max_contact_depth"] < 0.2    # 0.05 at the landing
+    assert firm.summary["metrics"]["max_contact_depth_at_frames"] < 0.2   # 0.05
+    # between frames the landing at 0.98 m/s goes deeper, about v sqrt(m / k) = 0.98 radii
+    # undamped (m = 1e-10 kg on one point), less with the contact damping (zeta about 0.25)
+    assert 0.4 < firm.summary["metrics"]["max_contact_depth"] < 1.0
     assert not any("sank" in w for w in firm.summary["warnings"])
