@@ -814,12 +814,15 @@ def _energy_rise(p: Prepared, arrays: dict[str, NDArray[Any]]) -> list[str]:
                 "unresolved (the midpoint rule in contact: a thread bouncing on a box at a fixed "
                 "1.5 ms +6.7 %); use 'bdf2' or shorter steps (simulation.dt, dt_max or "
                 "error_tolerance)"]
-    return [f"{told}: the explicit step "
-            f"(simulation.explicit_safety = {sim.explicit_safety:g}) is long for the fastest "
+    step = f"simulation.explicit_safety = {sim.explicit_safety:g}" if sim.adaptive else \
+        f"simulation.dt = {sim.dt:g} s with adaptive = false"
+    smaller = "a smaller explicit_safety" if sim.adaptive else "a smaller simulation.dt"
+    return [f"{told}: the explicit step ({step}) is long for the fastest "
             "motion: symplectic Euler takes a snap's or contact's force at the start of the "
             "step, and without damping nothing takes the gain away, and on a smooth vibration "
             "its energy swings by about omega dt / 2 of itself and comes back (undamped nets: within 0.4 % "
-            "at explicit_safety = 0.25, a 5 x 5 net hitting a free box 1.2 %); use a smaller explicit_safety, materials.viscosity > 0"
+            "at explicit_safety = 0.25, a 5 x 5 net hitting a free box 1.2 %); use "
+            f"{smaller}, materials.viscosity > 0"
             + (", contact.damping > 0" if scene.bodies else "") + _energy_stable_choice(p)]
 
 
@@ -856,9 +859,10 @@ def _energy_loss(p: Prepared, arrays: dict[str, NDArray[Any]]) -> list[str]:
             + ("of the largest energy in motion " if forces else "")
             + "although nothing in the scene dissipates it (no materials.viscosity"
             + (", contact.damping or contact.friction" if scene.bodies else "")
-            + f"): simulation.integrator = '{scene.integrator}' damps what its steps do not "
-            f"resolve (threads snapping taut, contacts); {keeps} the energy, or resolve "
-            "those events with a smaller simulation.dt_max or error_tolerance"]
+            + f"): simulation.integrator = '{scene.integrator}' damps what its steps resolve "
+            "coarsely (vibrations of few steps per period, threads snapping taut, contacts); "
+            f"{keeps} the energy, or resolve that motion with a smaller simulation.dt_max or "
+            "error_tolerance (or dt with adaptive = false)"]
 
 
 def _energy_stable_choice(p: Prepared) -> str:
