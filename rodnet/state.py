@@ -10,6 +10,7 @@ integrators advance copies of it; frames are taken from it.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -154,3 +155,16 @@ class State:
     def copy(self) -> State:
         return replace(self, q=self.q.copy(), v=self.v.copy(),
                        bodies=None if self.bodies is None else self.bodies.copy())
+
+
+class AcceptedStep(NamedTuple):
+    """What one accepted step adds to a run's records (:meth:`StepStats.record_accepted`):
+    ``friction_work`` [J] over it, and at its end the ``max_tension`` [N], the sum of the
+    contact point forces ``contact_force`` [N], their number ``contact_count`` and the deepest
+    thread surface in a body ``contact_depth`` [thread radii]."""
+
+    friction_work: float
+    max_tension: float
+    contact_force: float
+    contact_count: int
+    contact_depth: float

@@ -109,6 +109,9 @@ class SpringChain:
         return {"positions": q.x.copy(), "velocities": v.reshape(-1, 3).copy(),
                 "tension": self.k * (length - self.structure.rest_length)}
 
+    def axial_force(self, q, v):
+        return self.frame_arrays(q, v)["tension"]
+
     def energy(self, q, v, t):
         a, b = self.structure.segments.T
         stretch = np.linalg.norm(q.x[b] - q.x[a], axis=1) - self.structure.rest_length

@@ -5,23 +5,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Callable, NamedTuple
+from typing import Callable
 
 import numpy as np
 from numpy.typing import NDArray
 
-
-class AcceptedStep(NamedTuple):
-    """What one accepted step adds to a run's records (:meth:`StepStats.record_accepted`):
-    ``friction_work`` [J] over it, and at its end the ``max_tension`` [N], the sum of the
-    contact point forces ``contact_force`` [N], their number ``contact_count`` and the deepest
-    thread surface in a body ``contact_depth`` [thread radii]."""
-
-    friction_work: float
-    max_tension: float
-    contact_force: float
-    contact_count: int
-    contact_depth: float
+from rodnet.state import AcceptedStep
 
 
 @dataclass

@@ -17,9 +17,8 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from rodnet.integrate.frames import AcceptedStep
 from rodnet.kernels.explicit import ExplicitProblem, StepControl
-from rodnet.state import Configuration, Linearization, State, StepRate
+from rodnet.state import AcceptedStep, Configuration, Linearization, State, StepRate
 
 FloatArray = NDArray[np.float64]
 IterationMatrix = object

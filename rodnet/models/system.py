@@ -32,14 +32,13 @@ from numpy.typing import NDArray
 from rodnet.assembly import IterationMatrix, SparsityPattern
 from rodnet.contact.forces import contact_state
 from rodnet.contact.term import ContactTerm
-from rodnet.integrate.frames import AcceptedStep
 from rodnet.kernels import so3, so3_compiled
 from rodnet.kernels.contact_compiled import no_contact
 from rodnet.kernels.cosserat_compiled import RodElements
 from rodnet.kernels.explicit import BodyMass, ExplicitProblem, Loads, Nodes, Rotations, StepControl
 from rodnet.kernels.hinge import Hinges
 from rodnet.kernels.segments import Segments
-from rodnet.state import BodyMotion, Configuration, Linearization, State, StepRate
+from rodnet.state import AcceptedStep, BodyMotion, Configuration, Linearization, State, StepRate
 from rodnet.topology import Structure
 
 FloatArray = NDArray[np.float64]
