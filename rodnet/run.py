@@ -883,17 +883,24 @@ def _raised_inertia(p: Prepared) -> float | None:
     return scale
 
 
-def _sunk(p: Prepared, arrays: dict[str, NDArray[Any]]) -> list[str]:
-    """A warning where a thread's centreline sank into a body at a saved frame (the contact's
-    penalty stiffness too soft for the loads: a 1 km thread of 1 m radius sank 6 m into a box
-    under the default 1e5 N/m, outside check)."""
+def _sunk(p: Prepared, arrays: dict[str, NDArray[Any]], stats: StepStats) -> list[str]:
+    """A warning where a thread's centreline sank into a body at a saved frame or, between the
+    frames, at a step (the contact's penalty stiffness too soft for the loads: a 1 km thread of
+    1 m radius sank 6 m into a box under the default 1e5 N/m, outside check)."""
     depth = arrays.get("contact_depth")
-    if depth is None or not len(depth) or float(np.max(depth)) <= 1.0:
+    if depth is None or not len(depth):
         return []
     k = int(np.argmax(depth))
+    if float(depth[k]) > 1.0:
+        when = (f"{float(depth[k]):.3g} thread radii into a body at t = "
+                f"{float(arrays['time'][k]):.6g} s")
+    elif stats.max_contact_depth > 1.0:
+        when = (f"{stats.max_contact_depth:.3g} thread radii into a body between the saved "
+                f"frames (at most {float(depth[k]):.3g} at a frame)")
+    else:
+        return []
     stiffness = p.system.contact.bodies.law.stiffness   # type: ignore[union-attr]
-    return [f"a thread's surface sank {float(depth[k]):.3g} thread radii into a body at t = "
-            f"{float(arrays['time'][k]):.6g} s (its centreline inside the body): contact.stiffness "
+    return [f"a thread's surface sank {when} (its centreline inside the body): contact.stiffness "
             f"= {stiffness:g} N/m lets it in (a steady load W sinks W / stiffness, a point of "
             "mass m hitting at speed v about v sqrt(m / stiffness)); raise it where the depth "
             "matters, with the steps that a stiffer contact needs"]
@@ -973,7 +980,7 @@ def _warnings(p: Prepared, stats: StepStats, monitors: dict[str, float],
     :data:`VISCOUS_STEP_FACTOR` times. ``monitors``: :data:`rodnet.io.recorder.MONITORS` over
     the saved frames ``arrays``."""
     out = _viscous_step(p) + _energy_rise(p, arrays) + _energy_loss(p, arrays) + \
-        _scene_warnings(p) + _sunk(p, arrays)
+        _scene_warnings(p) + _sunk(p, arrays, stats)
     frames = len(arrays["time"])
     scale = _raised_inertia(p)
     if "jump_from" in stats.extra:

@@ -132,3 +132,5 @@ def test_an_impact_between_frames_has_its_contact_metrics(tmp_path: Path, integr
     assert metrics["max_contact_force"] == pytest.approx(math.sqrt(k * mass), rel=within)
     depth = math.sqrt(mass / k) / 1e-3    # in thread radii
     assert metrics["max_contact_depth"] == pytest.approx(depth, rel=within)
+    # 1.8 radii: the centreline went inside the body, between the frames
+    assert any("sank" in w and "between the saved frames" in w for w in r.summary["warnings"])
