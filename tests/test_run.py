@@ -802,6 +802,69 @@ def test_energy_guard_counts_constant_loads(tmp_path: Path) -> None:
     assert "gravity and constant loads" in r.message
 
 
+PRESSED = """
+[simulation]
+duration = 0.2
+gravity = [0.0, 0.0, 0.0]
+integrator = "bdf2"
+adaptive = false
+dt = 0.001
+[model]
+type = "lumped"
+[[materials]]
+name = "kevlar"
+density = 1440.0
+youngs_modulus = 7.0e10
+diameter = 0.001
+[[rods]]
+name = "t"
+material = "kevlar"
+points = [[0.0, 0.0, 0.0025], [0.1, 0.0, 0.0025]]
+elements = 1
+[[masses]]
+node = "t:start"
+mass = 0.005
+[[masses]]
+node = "t:end"
+mass = 0.005
+[[loads]]
+node = "t:start"
+force = [0.0, 0.0, -5.0]
+[[loads]]
+node = "t:end"
+force = [0.0, 0.0, -5.0]
+[[bodies]]
+name = "b"
+shape = "box"
+size = [0.3, 0.3, 0.1]
+position = [0.05, 0.0, -0.05]
+fixed = true
+[contact]
+stiffness = 1.0e6
+friction = 0.0
+[output]
+frame_interval = 0.01
+vtk = false
+"""
+"""A short thread pressed 2 mm down onto a box by 10 N (outside check): it lands at 2 m/s
+within the first frame interval, and BDF2's 1 ms steps, far longer than the contact's period
+(0.4 ms), damp the landing."""
+
+
+def test_an_energy_loss_between_frames_is_told_in_joules(tmp_path: Path) -> None:
+    """The energy lost is the loads' work on the way down, ``10 N x 2 mm`` = 0.02 J, about a
+    thousand times the largest energy in motion at a saved frame: the warning gives the joules
+    and says the motion fell between the frames (it had said "fell by 1.16e+05 %")."""
+    r = run(scene_from_toml(PRESSED), tmp_path, progress=False)
+    assert r.status == "ok", r.message
+    a = r.arrays
+    motion = a["kinetic_energy"] + a["elastic_energy"] + a["contact_energy"]
+    lost = (motion + a["potential_energy"])[0] - (motion + a["potential_energy"])[-1]
+    assert lost == pytest.approx(10.0 * 0.002, rel=0.02)
+    told = [w for w in r.summary["warnings"] if w.startswith("the energy fell by")]
+    assert len(told) == 1 and f"{lost:.3g} J, " in told[0] and "between the frames" in told[0]
+
+
 LINE_LOADED = """
 [simulation]
 duration = 0.02
