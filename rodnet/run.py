@@ -796,14 +796,15 @@ def _energy_rise(p: Prepared, arrays: dict[str, NDArray[Any]]) -> list[str]:
     energy, motion, forces = unforced
     gain = energy_gain(energy, energy[0])
     if forces:
-        rise = float(np.max(gain / np.maximum(np.maximum.accumulate(motion),
-                                              np.finfo(float).tiny)))
+        shares = gain / np.maximum(np.maximum.accumulate(motion), np.finfo(float).tiny)
+        worst = int(np.argmax(shares))
+        rise = float(shares[worst])
     else:
         rise = float(gain.max() / energy[0]) if energy[0] > 0.0 else 0.0
     if not rise > ENERGY_RISE:
         return []
     measure = (f"the energy, the potential of {forces} included, rose by "
-               + _share(rise, float(gain.max()))) if forces else \
+               + _share(rise, float(gain[worst]))) if forces else \
         f"the kinetic and elastic energy rose by {100.0 * rise:.3g} %"
     measure += " over the saved frames"   # a failed run's message tells the step's own figure
     told = f"{measure} although nothing does work on the structure" + \

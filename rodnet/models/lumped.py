@@ -284,9 +284,8 @@ class LumpedModel:
 
     def frame_arrays(self, q: Configuration, v: FloatArray) -> dict[str, FloatArray]:
         """What a saved frame holds: positions, velocities (N, 3) and segment ``tension`` (E,)."""
-        vv = np.asarray(v).reshape(-1, 3)
-        return {"positions": np.array(q.x), "velocities": np.array(vv),
-                "tension": self.segment_states(q.x, vv)[0]}
+        return {"positions": np.array(q.x), "velocities": np.array(v).reshape(-1, 3),
+                "tension": self.axial_force(q, v)}
 
     def axial_force(self, q: Configuration, v: FloatArray) -> FloatArray:
         """Axial force of every segment [N], (E,): the frames' ``tension``."""
