@@ -370,12 +370,6 @@ class LoadSpec:
         _finite_vector(self, "force", "moment")
         _check_timing(self)
 
-    @property
-    def conservative(self) -> bool:
-        """Whether the load has a potential, ``-force . x``: a force alone (a dead moment has
-        none on finite rotations), constant in time (no ramp, table, start or stop)."""
-        return _constant_in_time(self) and not any(self.moment)
-
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class LineLoadSpec:
@@ -393,16 +387,6 @@ class LineLoadSpec:
     def __post_init__(self) -> None:
         _finite_vector(self, "force_per_length")
         _check_timing(self)
-
-    @property
-    def conservative(self) -> bool:
-        """Whether the load has a potential: constant in time (no ramp, table, start or stop)."""
-        return _constant_in_time(self)
-
-
-def _constant_in_time(load: LoadSpec | LineLoadSpec) -> bool:
-    """Whether a load's time factor is 1 throughout."""
-    return load.ramp == 0.0 and load.table is None and load.start == 0.0 and load.stop is None
 
 
 def _check_timing(load: LoadSpec | LineLoadSpec) -> None:

@@ -293,15 +293,16 @@ def _energy_checks(p: Prepared) -> list[FrameCheck]:
 
 def _worked_by(scene: Scene) -> str | None:
     """What does work on a dynamic scene, where all of it has a potential that the frames'
-    ``potential_energy`` counts: ``""`` (nothing), ``"gravity"``, ``"constant loads"`` or
-    ``"gravity and constant loads"``; None for a static scene, or where a force without a
-    potential does work (a load or gravity with a time factor, a dead moment)."""
+    ``potential_energy`` counts (less its ``load_factor_energy``, what the loads' time factors
+    changed of it, :func:`rodnet.kernels.schedule.factor_energy`): ``""`` (nothing),
+    ``"gravity"``, ``"loads"`` or ``"gravity and loads"``; None for a static scene, or where a
+    force without a potential does work (a dead moment)."""
     sim = scene.simulation
     loads = [*scene.loads, *scene.line_loads]
-    if sim.type != "dynamic" or sim.gravity_scheduled or not all(l.conservative for l in loads):
+    if sim.type != "dynamic" or any(any(l.moment) for l in scene.loads):
         return None
     return " and ".join(name for name, acts in (("gravity", any(sim.gravity)),
-                                                ("constant loads", bool(loads))) if acts)
+                                                ("loads", bool(loads))) if acts)
 
 
 # --- the integrators, by name ------------------------------------------------------------
@@ -784,8 +785,8 @@ the default step: +45 % on a 5 x 5 net)."""
 
 def _energy_rise(p: Prepared, arrays: dict[str, NDArray[Any]]) -> list[str]:
     """The warning of a dynamic run whose energy (:func:`rodnet.io.recorder.mechanical_energy`)
-    rose by more than :data:`ENERGY_RISE` although nothing but a constant gravity does work on
-    it (no loads): the energy guard allows symplectic Euler's swing up to 100 %, which undamped
+    rose by more than :data:`ENERGY_RISE` although nothing but gravity and loads with a potential
+    do work on it (:func:`_worked_by`): the energy guard allows symplectic Euler's swing up to 100 %, which undamped
     snaps reach only at the stability limit, while at the default step they already gain tens of
     percent (and a light rope pressed on a drum by its weight grows without bound); the implicit
     schemes' guard 10 %, below which the midpoint rule in contact can gain a few percent."""
@@ -849,7 +850,8 @@ DISSIPATIVE_SCHEMES = ("bdf2", "generalized-alpha", "backward-euler")
 def _energy_loss(p: Prepared, arrays: dict[str, NDArray[Any]]) -> list[str]:
     """The warning of a run whose energy fell by more than :data:`ENERGY_LOSS` under a
     :data:`DISSIPATIVE_SCHEMES` integrator where nothing in the scene dissipates (no viscosity,
-    no contact damping or friction) and nothing but a constant gravity does work: what the
+    no contact damping or friction) and nothing but forces with a potential do work
+    (:func:`_worked_by`): what the
     scheme's numerical damping took at snaps and contacts its steps do not resolve (an outside
     check: a rod hitting a free sphere head-on lost 24 % of its energy under BDF2 at default
     steps, its exit velocity 5.7 % low; 0.2 % at a fixed 2.5e-6 s; without a word)."""

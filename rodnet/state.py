@@ -129,6 +129,10 @@ class State:
         The rigid bodies (None in a scene without bodies).
     friction_work : float
         Work dissipated by friction since the start [J].
+    load_factor_energy : float
+        How much the dead forces' potential ``-f(t) . x`` changed since the start by their
+        time factors alone, step by step at the steps' mean positions [J]: the frames' energy
+        less it is constant where nothing dissipates.
     applied_to_bodies : tuple of two (B, 3) float, or None
         The force [N] and moment about the centre of mass [N m] the threads applied to every
         body in the explicit loop's last step (its friction (E2) is not the regularised law
@@ -139,6 +143,7 @@ class State:
     v: FloatArray
     bodies: BodyMotion | None = None
     friction_work: float = 0.0
+    load_factor_energy: float = 0.0
     applied_to_bodies: tuple[FloatArray, FloatArray] | None = None
 
     @property
@@ -161,10 +166,13 @@ class AcceptedStep(NamedTuple):
     """What one accepted step adds to a run's records (:meth:`StepStats.record_accepted`):
     ``friction_work`` [J] over it, and at its end the ``max_tension`` [N], the sum of the
     contact point forces ``contact_force`` [N], their number ``contact_count`` and the deepest
-    thread surface in a body ``contact_depth`` [thread radii]."""
+    thread surface in a body ``contact_depth`` [thread radii]; and the change of the dead
+    forces' potential that their time factors made over it, ``load_factor_energy`` [J]
+    (:attr:`State.load_factor_energy`)."""
 
     friction_work: float
     max_tension: float
     contact_force: float
     contact_count: int
     contact_depth: float
+    load_factor_energy: float

@@ -21,6 +21,7 @@ from rodnet.kernels.contact_compiled import contact_scratch
 from rodnet.kernels import threads
 from rodnet.kernels.explicit import (Bodies, ExplicitProblem, Marched, Scratch, StepControl,
                                      march_for, march_nodes, node_forces_only)
+from rodnet.kernels.schedule import factor_slopes
 from rodnet.state import State
 
 
@@ -29,8 +30,11 @@ def scratch(problem: ExplicitProblem) -> Scratch:
     n, r = problem.nodes.inv_mass.shape[0], problem.rotations.inertia.shape[0]
     e, b = problem.rods.rest_length.shape[0], problem.contact.kind.shape[0]
     return Scratch(np.empty((n, 3)), np.empty((r, 3)), np.empty((e, 12)), np.empty((e, 2)),
-                   np.empty((9, 3)),
-                   contact_scratch(n, b))
+                   np.empty((9, 3)), contact_scratch(n, b), NO_RATE)
+
+
+NO_RATE = np.zeros((0, 3))
+"""The loads' rate while no time factor changes (:attr:`Scratch.load_rate`)."""
 
 
 def _bodies(state: State) -> Bodies:
@@ -87,10 +91,20 @@ def integrate_explicit(system: System, state: State, times: NDArray[np.float64],
     bodies_near = state.bodies is not None and control.near_dt < control.dt
     stats = StepStats() if stats is None else stats  # filled in place: kept if the run fails
 
-    def march(a: float, b: float, steps: int, h: float):  # type: ignore[no-untyped-def]
+    loads = problem.loads
+
+    def march(a: float, b: float, steps: int, h: float) -> Marched:
+        slope, jump = factor_slopes(loads.schedule, a, b)   # linear between a and b
+        rate = slope[:, None] * loads.force if slope.any() else NO_RATE
         if nodes_only:
-            return march_nodes(x, v, a, b, steps, h, problem, work.f_node)
-        return loop(x, quat, v, W, bodies, a, b, steps, h, problem, control, work)
+            done = march_nodes(x, v, a, b, steps, h, problem, work.f_node, rate)
+        else:
+            done = loop(x, quat, v, W, bodies, a, b, steps, h, problem, control,
+                        work._replace(load_rate=rate))
+        if done.status == 0 and jump.any():   # a factor's jump at b, at b's positions
+            return done._replace(load_factor_energy=done.load_factor_energy - float(
+                np.einsum("l,li,li->", jump, loads.force, x[loads.nodes])))
+        return done
 
     t0 = float(times[0])   # a call of no steps compiles the loop before the first frame's outputs
     march(t0, t0, 0, control.dt)
@@ -110,6 +124,7 @@ def integrate_explicit(system: System, state: State, times: NDArray[np.float64],
             done = march(a, b, steps, h)
             stats.function_evaluations += done.evaluations
             state.friction_work += done.friction_work
+            state.load_factor_energy += done.load_factor_energy
             if rods:
                 stats.max_element_rotation = max(stats.max_element_rotation or 0.0, done.phi_max)
             finite = np.isfinite(v).all() and np.isfinite(W).all()

@@ -960,7 +960,9 @@ def integrate_implicit(scheme: Scheme, state: State, times: NDArray[np.float64],
                     continue
                 # a step cut short to land on a frame does not shrink the next one
                 h = min(max(h_try * factor, h if h_try < h and factor >= 1.0 else 0.0), dt_max)
-            motion, t = new, t + h_try
+            end = t_frame if h_try == t_frame - t else t + h_try   # a frame's time exactly
+            record = system.accepted_step(motion.q, motion.v, new.q, new.v, t, end)
+            motion, t = new, end
             stats.record_step(h_try)
             steps += 1
             if steps > CRAWL_STEPS and h_try < CRAWL_FRACTION * frame_gap:
@@ -976,8 +978,8 @@ def integrate_implicit(scheme: Scheme, state: State, times: NDArray[np.float64],
             h = min(h, newton_limit)
             if adaptive:
                 h = min(h, system.step_limit(motion.v))
-            record = system.accepted_step(motion.q, motion.v, h_try)
             state.friction_work += record.friction_work
+            state.load_factor_energy += record.load_factor_energy
             stats.record_accepted(record)
             if adaptive and not (controlled and np.isfinite(error)):  # growth on easy Newton
                 easy = easy + 1 if result.iterations <= 4 else 0

@@ -61,6 +61,7 @@ def integrate_rk45(system: System, state: State, times: NDArray[np.float64], rto
         return x0 + (t - t0) * u0
 
     y = np.concatenate([np.zeros(3 * n), np.ravel(state.velocities - u0)]).astype(float)
+    x_start, v_start = x0.copy(), np.ravel(state.velocities).astype(float)   # a step's start
     on_frame(t0, state)
     next_frame = 1
     for start, stop in zip(bounds[:-1], bounds[1:]):
@@ -78,18 +79,27 @@ def integrate_rk45(system: System, state: State, times: NDArray[np.float64], rto
                 raise SimulationFailed(
                     f"RK45 failed at t = {solver.t:.6g} s: {message or 'non-finite state'}")
             stats.record_step(solver.step_size)
-            stats.record_accepted(system.accepted_step(
-                Configuration(frame(solver.t) + solver.y[:3 * n].reshape(n, 3)),
-                (u0 + solver.y[3 * n:].reshape(n, 3)).ravel(),
-                solver.step_size))   # the largest tension over the steps, not the frames only
+            x_end = frame(solver.t) + solver.y[:3 * n].reshape(n, 3)
+            v_end = (u0 + solver.y[3 * n:].reshape(n, 3)).ravel()
+            record = system.accepted_step(      # the largest tension over the steps
+                Configuration(x_start), v_start, Configuration(x_end), v_end, solver.t_old,
+                solver.t)
+            stats.record_accepted(record)
+            before = state.load_factor_energy   # a frame inside the step counts its part
             dense = solver.dense_output()
             while next_frame < len(times) and times[next_frame] <= solver.t + 1e-12:
-                at = dense(times[next_frame]) if times[next_frame] < solver.t else solver.y
-                state.q = Configuration(frame(float(times[next_frame]))
-                                        + at[:3 * n].reshape(n, 3))
+                t_at = float(times[next_frame])
+                at = dense(t_at) if t_at < solver.t else solver.y
+                state.q = Configuration(frame(t_at) + at[:3 * n].reshape(n, 3))
                 state.v = (u0 + at[3 * n:].reshape(n, 3)).ravel()
-                on_frame(float(times[next_frame]), state)
+                state.load_factor_energy = before + (
+                    record.load_factor_energy if t_at >= solver.t else system.accepted_step(
+                        Configuration(x_start), v_start, state.q, state.v, solver.t_old, t_at
+                    ).load_factor_energy)
+                on_frame(t_at, state)
                 next_frame += 1
+            state.load_factor_energy = before + record.load_factor_energy
+            x_start, v_start = x_end, v_end
             if on_progress is not None and stats.steps % 50 == 0:
                 on_progress(float(solver.t), float(solver.step_size), stats)
         y = solver.y

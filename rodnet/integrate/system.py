@@ -137,10 +137,13 @@ class System(Protocol):
         limit (above 1 the step is retried shorter); 0 without bodies."""
         ...
 
-    def accepted_step(self, q: Configuration, v: FloatArray, dt: float) -> AcceptedStep:
-        """What an accepted step of ``dt`` ending at ``q``, ``v`` adds to the run's records:
-        the work friction dissipated over it [J] (0 without bodies), and the largest tension
-        and the contact totals at its end."""
+    def accepted_step(self, q_start: Configuration, v_start: FloatArray, q: Configuration,
+                      v: FloatArray, t_start: float, t_end: float) -> AcceptedStep:
+        """What an accepted step from ``t_start`` to ``t_end`` [s], from ``q_start``,
+        ``v_start`` to ``q``, ``v``, adds to the run's records: the work friction dissipated
+        over it [J] (0 without bodies), the largest tension and the contact totals at its end,
+        and what the dead forces' time factors changed of their potential over it [J]
+        (:func:`rodnet.kernels.schedule.factor_energy`)."""
         ...
 
     # --- explicit integrator and RK45 --------------------------------------------------------

@@ -30,7 +30,7 @@ last frame's (``<name>_last``) and the number of frames where they are positive
 
 SHAPES = {"positions": ("N", 3), "velocities": ("N", 3), "rotations": ("N", 4), "tension": ("E",),
           "curvature": ("E",), "twist": ("E",), "kinetic_energy": (), "elastic_energy": (),
-          "potential_energy": (), "contact_energy": (),
+          "potential_energy": (), "load_factor_energy": (), "contact_energy": (),
           "contact_force": (), "contact_count": (), "contact_depth": (), "friction_work": (),
           "body_force": ("B", 3),
           "body_moment": ("B", 3), "body_positions": ("B", 3), "body_rotations": ("B", 4),
@@ -114,9 +114,13 @@ def mechanical_energy(frames: dict[str, Any], potential: bool) -> tuple[Any, Any
     """The energy [J] of a frame, or of the frames' stacked arrays (F,), that the energy checks
     watch, and its part in motion: ``motion`` = kinetic + elastic + the contact's penalty springs
     (with bodies), ``energy`` = ``motion`` plus, with ``potential``, the frame's
-    ``potential_energy`` (gravity on the nodes and on the bodies)."""
+    ``potential_energy`` (gravity on the nodes and on the bodies, the dead forces) less its
+    ``load_factor_energy`` (what the loads' time factors changed of it): constant where
+    nothing dissipates."""
     motion = frames["kinetic_energy"] + frames["elastic_energy"] + frames.get("contact_energy", 0.0)
-    return (motion + frames["potential_energy"] if potential else motion), motion
+    if not potential:
+        return motion, motion
+    return motion + frames["potential_energy"] - frames.get("load_factor_energy", 0.0), motion
 
 
 def energy_gain(energy: Any, start: float) -> Any:
@@ -134,8 +138,8 @@ def energy_guard(growth: float = 0.1, potential: bool = False,
     Without ``potential``, for scenes with nothing that does work on them (no gravity, no
     loads): the energy may not rise above the first frame's by more than ``growth`` of it.
     With ``potential``, for scenes where only forces with a potential do work (``forces``, for
-    the message: a constant gravity, loads constant in time): the energy counts their
-    potential and may not rise above the first frame's by more than ``growth`` of the largest
+    the message: gravity, loads without a moment; what their time factors changed of the
+    potential, ``load_factor_energy``, taken out): the energy counts their potential and may not rise above the first frame's by more than ``growth`` of the largest
     energy in motion of the frames so far (the potential has no natural zero). An integrator
     that is not stable on a stiff nonlinear problem (the midpoint rule with contact at a large
     fixed step, symplectic Euler on a light rope pressed on a drum) would otherwise report a

@@ -108,4 +108,4 @@ def restarted(state: State, frame: dict[str, NDArray[Any]],
                              "= \"explicit\", or start from a run without bodies)")
         bodies = bodies_from(frame)
     friction = float(frame.get("friction_work", 0.0))
-    return State(q, v, bodies, friction)
+    return State(q, v, bodies, friction, float(frame.get("load_factor_energy", 0.0)))

@@ -134,7 +134,9 @@ class Scratch(NamedTuple):
     """Work arrays, allocated once per run: ``f_node`` (N, 3), ``m_node`` (R, 3) (the moments,
     then in the update the body momenta after the kick), the rod
     elements' ``force`` (E, 12) and ``monitor`` (E, 2),
-    the bodies' ``body_work`` (9, 3) and the contact's :class:`ContactScratch`."""
+    the bodies' ``body_work`` (9, 3), the contact's :class:`ContactScratch`, and
+    ``load_rate`` (L, 3) [N/s], each dead load's force times its factor's slope over the call
+    (:func:`_factor_energy`; (0, 3) while no factor changes)."""
 
     f_node: np.ndarray
     m_node: np.ndarray
@@ -142,6 +144,7 @@ class Scratch(NamedTuple):
     monitor: np.ndarray
     body_work: np.ndarray
     contact: ContactScratch
+    load_rate: np.ndarray
 
 
 class Bodies(NamedTuple):
@@ -165,7 +168,8 @@ class Marched(NamedTuple):
     [N] and element rotation ``phi_max`` [rad], the ``friction_work`` [J], and over the steps'
     start states the largest sum of contact point forces ``contact_force`` [N], number of
     contact points ``contact_count`` and depth of a thread's surface in a body
-    ``contact_depth`` [thread radii]."""
+    ``contact_depth`` [thread radii], and ``load_factor_energy`` [J] (:func:`_factor_energy`
+    over the steps; a jump of a factor at ``t`` is the caller's)."""
 
     status: int
     t: float
@@ -179,6 +183,30 @@ class Marched(NamedTuple):
     contact_force: float
     contact_count: int
     contact_depth: float
+    load_factor_energy: float
+
+
+@numba.njit(inline="always")
+def _rate_products(x, v, nodes, rate):  # pragma: no cover - compiled
+    """``sum_j rate_j . x[nodes_j]`` [W] and ``sum_j rate_j . v[nodes_j]`` [W/s] over the
+    loads' ``rate`` (L, 3) (:attr:`Scratch.load_rate`) at positions ``x`` and velocities ``v``
+    (N, 3)."""
+    gx, gv = 0.0, 0.0
+    for j in range(rate.shape[0]):
+        a = nodes[j]
+        for k in range(3):
+            gx += rate[j, k] * x[a, k]
+            gv += rate[j, k] * v[a, k]
+    return gx, gv
+
+
+@numba.njit(inline="always")
+def _factor_energy(h, start, end):  # pragma: no cover - compiled
+    """What the loads' time factors changed of their potential over a step of ``h`` [s],
+    ``-int s' f . x dt`` [J], from the :func:`_rate_products` at its ``start`` and ``end``:
+    ``f . x`` the cubic of its ends' values and slopes, as
+    :func:`rodnet.kernels.schedule.factor_energy` (a jump at the call's end is added there)."""
+    return -h * (0.5 * (start[0] + end[0]) - h / 12.0 * (end[1] - start[1]))
 
 
 @numba.njit(inline="always")
@@ -502,6 +530,7 @@ def _loop(with_bodies: bool):  # type: ignore[no-untyped-def]
         has_bodies = c.kind.shape[0] > 0
         peak, phi_max, h_min, h_max, work = 0.0, 0.0, np.inf, 0.0, 0.0
         touch, touching, deep = 0.0, 0, 0.0    # contact's largest force, points, depth
+        drift = 0.0                            # the loads' potential moved by their factors
         total, points, depth = 0.0, 0, 0.0
         steps, evaluations = 0, 0
         node_speed = largest_speed(v) if with_bodies and has_bodies else 0.0
@@ -539,7 +568,7 @@ def _loop(with_bodies: bool):  # type: ignore[no-untyped-def]
                         new_base = min(base, 0.9 * allowed)
                         if new_base < control.min_dt:
                             return Marched(2, t, steps, evaluations, h_min, h_max, peak, phi_max,
-                                           work, touch, touching, deep)
+                                           work, touch, touching, deep, drift)
                 if new_base != base:                      # redo the step from the same state
                     forget_clearance(cs.active, cs.clearance)
                     base = new_base
@@ -553,8 +582,14 @@ def _loop(with_bodies: bool):  # type: ignore[no-untyped-def]
             h_min = min(h_min, h_full)
             h_max = max(h_max, h_full)
             work += h * power
+            rated = s.load_rate.shape[0] > 0
+            if rated:
+                start = _rate_products(x, v, p.loads.nodes, s.load_rate)
             finite = _update(x, quat, v, W, s.f_node, s.m_node, p.nodes, p.rotations, h,
                              control.blocks)
+            if rated:
+                drift += _factor_energy(h, start, _rate_products(x, v, p.loads.nodes,
+                                                                 s.load_rate))
             if with_bodies and has_bodies:
                 node_speed = largest_speed(v)
                 advance_bodies(h, cs.body_force, cs.body_moment, bm.inv_mass, bm.inertia,
@@ -573,11 +608,11 @@ def _loop(with_bodies: bool):  # type: ignore[no-untyped-def]
                 if fixed:
                     t = t_seg + k * h_seg
                 return Marched(1, t, steps, evaluations, h_min, h_max, peak, phi_max, work,
-                               touch, touching, deep)
+                               touch, touching, deep, drift)
         if fixed:
             t = t_end
         return Marched(0, t, steps, evaluations, h_min, h_max, peak, phi_max, work, touch,
-                       touching, deep)
+                       touching, deep, drift)
 
     return march_loop
 
@@ -634,16 +669,18 @@ def node_forces_only(problem: ExplicitProblem, control: StepControl) -> bool:
 
 
 @numba.njit(cache=True, error_model="numpy")
-def march_nodes(x, v, t0, t_end, n, h, problem, f_node):  # pragma: no cover - compiled
+def march_nodes(x, v, t0, t_end, n, h, problem, f_node,
+                load_rate):  # pragma: no cover - compiled
     """:func:`march` for a problem of :func:`node_forces_only`: ``n`` fixed steps of ``h`` [s]
     from ``t0`` to ``t_end``, each the forces (S7), (K3), (K4) and the update (S9) with the
     next step's start force (the node weights) written in the same pass over the nodes; the
     same arithmetic in the same order as :func:`march`, so the same result to the last bit.
-    ``f_node`` (N, 3) is work space. Returns a :class:`Marched`."""
+    ``f_node`` (N, 3) is work space, ``load_rate`` :attr:`Scratch.load_rate`. Returns a
+    :class:`Marched`."""
     nodes, loads, seg, hinges = problem.nodes, problem.loads, problem.segments, problem.hinges
     inv_mass, weight = nodes.inv_mass, nodes.weight
     no_quat, no_moment = np.zeros((0, 4)), np.zeros((0, 3))
-    peak = 0.0
+    peak, drift = 0.0, 0.0
     for i in range(x.shape[0]):
         for c in range(3):
             f_node[i, c] = weight[i, c]
@@ -654,6 +691,9 @@ def march_nodes(x, v, t0, t_end, n, h, problem, f_node):  # pragma: no cover - c
                                             seg.etaA, seg.kink_strain, seg.tension_only))
         if hinges.nodes.shape[0] > 0:
             hinge_forces(x, v, f_node, hinges.nodes, hinges.stiffness, hinges.tau, hinges.rest)
+        rated = load_rate.shape[0] > 0
+        if rated:
+            start = _rate_products(x, v, loads.nodes, load_rate)
         bad = 0
         for i in range(x.shape[0]):
             for c in range(3):
@@ -662,11 +702,13 @@ def march_nodes(x, v, t0, t_end, n, h, problem, f_node):  # pragma: no cover - c
                 f_node[i, c] = weight[i, c]
             if not (math.isfinite(x[i, 0]) and math.isfinite(x[i, 1]) and math.isfinite(x[i, 2])):
                 bad += 1
+        if rated:
+            drift += _factor_energy(h, start, _rate_products(x, v, loads.nodes, load_rate))
         if bad:
             return Marched(1, t0 + (k + 1) * h, k + 1, k + 1, h, h, peak, 0.0, 0.0, 0.0, 0,
-                           0.0)
+                           0.0, drift)
     return Marched(0, t_end, n, n, h if n else np.inf, h if n else 0.0, peak, 0.0, 0.0, 0.0,
-                   0, 0.0)
+                   0, 0.0, drift)
 
 
 @numba.njit(cache=True)

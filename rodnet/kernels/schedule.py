@@ -133,3 +133,32 @@ def factors(schedule: LoadSchedule, t: float) -> np.ndarray:
         return np.zeros(0)
     return load_factors(schedule.ptr, schedule.times, schedule.values, schedule.start,
                         schedule.stop, float(t))
+
+
+def factor_slopes(schedule: LoadSchedule, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray]:
+    """Each load's time factor on ``[t0, t1)``, where it is linear (the steppers land on every
+    kink and jump): its slope (L,) [1/s] and its jump at ``t1`` (L,), ``s(t1)`` less the limit
+    from the left; zeros for ``t1 <= t0``."""
+    n = len(schedule.start)
+    if n == 0 or not t1 > t0:
+        return np.zeros(n), np.zeros(n)
+    s0, mid, s1 = (factors(schedule, t) for t in (t0, 0.5 * (t0 + t1), t1))
+    return 2.0 * (mid - s0) / (t1 - t0), s1 - (2.0 * mid - s0)
+
+
+def factor_energy(schedule: LoadSchedule, force: np.ndarray, t0: float, t1: float,
+                  x0: np.ndarray, v0: np.ndarray, x1: np.ndarray, v1: np.ndarray) -> float:
+    """What the time factors ``s`` alone changed of the loads' potential ``-s(t) f . x`` over a
+    step from ``t0`` to ``t1`` [s], ``-int s'(t) f . x(t) dt`` [J], for loads ``force`` (L, 3)
+    [N] on points at ``x0``, ``x1`` [m] with velocities ``v0``, ``v1`` [m/s] (L, 3) at the
+    step's ends: ``f . x(t)`` the cubic of those ends (exact for a constant acceleration, the
+    trapezoid rule erred by a quarter of the work from rest), and a jump at ``t1`` at the end's
+    positions. The energy of the frames less the sum of these is constant where nothing
+    dissipates (docs/getting_started.md)."""
+    slope, jump = factor_slopes(schedule, t0, t1)
+    if not (slope.any() or jump.any()):
+        return 0.0
+    h = t1 - t0
+    mean = 0.5 * (x0 + x1) - h / 12.0 * (v1 - v0)   # (1 / h) int x dt of the cubic
+    return -float(np.einsum("l,li,li->", h * slope, force, mean)
+                  + np.einsum("l,li,li->", jump, force, x1))

@@ -37,6 +37,7 @@ from rodnet.kernels.contact_compiled import no_contact
 from rodnet.kernels.cosserat_compiled import RodElements
 from rodnet.kernels.explicit import BodyMass, ExplicitProblem, Loads, Nodes, Rotations, StepControl
 from rodnet.kernels.hinge import Hinges
+from rodnet.kernels.schedule import factor_energy
 from rodnet.kernels.segments import Segments
 from rodnet.state import AcceptedStep, BodyMotion, Configuration, Linearization, State, StepRate
 from rodnet.topology import Structure
@@ -483,15 +484,27 @@ class ThreadSystem:
         new = self.contact.motion(q_new.body_x, q_new.body_quat, zero, zero)
         return self.contact.step_travel(q_old.x, q_new.x, new, old)
 
-    def accepted_step(self, q: Configuration, v: FloatArray, dt: float) -> AcceptedStep:
+    def accepted_step(self, q_start: Configuration, v_start: FloatArray, q: Configuration,
+                      v: FloatArray, t_start: float, t_end: float) -> AcceptedStep:
         n3 = 3 * self.model.n_nodes
+        dt = t_end - t_start
         tension = float(self.model.axial_force(q, v[:self.model.n_dof]).max(initial=0.0))
+        loads = self._loads
+        drift = 0.0 if not len(loads.nodes) else factor_energy(
+            loads.schedule, loads.force, t_start, t_end, q_start.x[loads.nodes],
+            v_start[:n3].reshape(-1, 3)[loads.nodes], q.x[loads.nodes],
+            v[:n3].reshape(-1, 3)[loads.nodes])
         if self.contact is None:
-            return AcceptedStep(0.0, tension, 0.0, 0, 0.0)
+            return AcceptedStep(0.0, tension, 0.0, 0, 0.0, drift)
         state = contact_state(self.contact.bodies, self._motion(q, v), q.x,
                               v[:n3].reshape(-1, 3))
         return AcceptedStep(dt * state.friction_power, tension, state.total_force, state.count,
-                            state.sunk)
+                            state.sunk, drift)
+
+    @cached_property
+    def _loads(self) -> Loads:
+        """The model's dead loads as the explicit loop takes them."""
+        return self.model.explicit_terms()[2]
 
     # --- the System protocol: the explicit loop ------------------------------------------
 
@@ -526,6 +539,7 @@ class ThreadSystem:
         energy = self.energy(t, state)
         frame["kinetic_energy"], frame["elastic_energy"] = energy["kinetic"], energy["elastic"]
         frame["potential_energy"] = energy.get("potential", float("nan"))
+        frame["load_factor_energy"] = state.load_factor_energy
         if "contact" in energy:
             frame["contact_energy"] = energy["contact"]
         if self.contact is not None and state.bodies is not None:

@@ -316,7 +316,8 @@ def test_fused_node_loop_equals_the_general_loop(axial) -> None:
         n = int(np.ceil(0.01 / control.dt))
         a = kx.march(x[0], z((0, 4)), v[0], z((0, 3)), bodies, t0, t1, n, (t1 - t0) / n,
                      problem, control, work[0])
-        b = kx.march_nodes(x[1], v[1], t0, t1, n, (t1 - t0) / n, problem, work[1].f_node)
+        b = kx.march_nodes(x[1], v[1], t0, t1, n, (t1 - t0) / n, problem, work[1].f_node,
+                           work[1].load_rate)
         assert a == b
         peaks = [max(peaks[0], a.peak), max(peaks[1], b.peak)]
     assert np.array_equal(x[0], x[1]) and np.array_equal(v[0], v[1]) and peaks[0] > 0.0
