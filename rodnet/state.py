@@ -76,10 +76,17 @@ class Linearization:
         Replace every element block whose symmetric part is indefinite by the projection of
         that part on the positive semidefinite matrices, so that the matrix gives a direction of
         descent of the step's potential.
+    inertia : (n_dof,) float or None
+        With ``convex``: the iteration matrix's diagonal (the masses' term) over its stiffness
+        coefficient, per DOF of the model (zero on held DOFs) [N/m, N m/rad]. Half of it is
+        shared among the elements at each DOF and counted in their blocks' curvature before the
+        projection (:func:`rodnet.kernels.convex.convex_blocks`), so only what the masses do
+        not outweigh is projected. None: the blocks alone.
     """
 
     strain_shift: object = None
     convex: bool = False
+    inertia: FloatArray | None = None
 
 
 @dataclass

@@ -8,7 +8,10 @@ matrix whose symmetric part is positive definite once the mass term is added, so
 correction descends (Teran, Sifakis, Irving and Fedkiw 2005, "Robust quasistatic finite
 elements and flesh simulation"; the projected Newton of incremental-potential integrators).
 Blocks whose symmetric part is positive semidefinite are left as they are (also their
-non-symmetric part), so near a convex solution the matrix is the exact one.
+non-symmetric part), so near a convex solution the matrix is the exact one. The blocks may
+count on a share of the masses' term of the iteration matrix (half of it, split among the
+elements at each DOF): that keeps the sum positive definite and leaves the negative curvature
+that the masses outweigh in the matrix.
 """
 
 from __future__ import annotations
@@ -27,19 +30,33 @@ Frobenius norm has no Cholesky factor (an eigenvalue below about ``-RELATIVE_TOL
 the largest)."""
 
 
-def convex_blocks(K: FloatArray) -> FloatArray:
-    """``K`` (E, k, k) with every block whose symmetric part is indefinite replaced by
-    ``V max(Lambda, 0) V^T`` of that part (a new array where any block changes). Blocks are
-    told apart by a compiled Cholesky test; only the indefinite ones are decomposed."""
+def convex_blocks(K: FloatArray, share: FloatArray | None = None) -> FloatArray:
+    """``K`` (E, k, k) with every block whose symmetric part plus ``diag(share[e])`` is
+    indefinite replaced by ``V max(Lambda, 0) V^T - diag(share[e])`` of that sum (a new array
+    where any block changes). Blocks are told apart by a compiled Cholesky test; only the
+    indefinite ones are decomposed.
+
+    ``share`` (E, k) >= 0 is the part of the iteration matrix's diagonal (the masses' term, in
+    the blocks' units) that each block may count on; where the shares of a DOF add up to less
+    than its diagonal, the matrix's symmetric part stays positive definite. The masses outweigh
+    most negative curvature of a net's threads (the reference net's first 0.3 s: 160 of 1,688
+    blocks projected in the median iteration that needs it, against 1,168 without), and a
+    block they outweigh keeps its exact entries."""
     if len(K) == 0:
         return K
     sym = 0.5 * (K + K.transpose(0, 2, 1))
+    diagonal = np.arange(K.shape[1])
+    if share is not None:
+        sym[:, diagonal, diagonal] += share
     bad = np.flatnonzero(indefinite(np.ascontiguousarray(sym), RELATIVE_TOLERANCE))
     if not len(bad):
         return K
     w_bad, V = np.linalg.eigh(sym[bad])
+    projected = np.einsum("eij,ej,ekj->eik", V, np.maximum(w_bad, 0.0), V)
+    if share is not None:
+        projected[:, diagonal, diagonal] -= share[bad]
     out = K.copy()
-    out[bad] = np.einsum("eij,ej,ekj->eik", V, np.maximum(w_bad, 0.0), V)
+    out[bad] = projected
     return out
 
 

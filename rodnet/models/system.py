@@ -21,7 +21,7 @@ couples them to the threads (``elements/contact/FORMULATION.md`` section 9).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import Any, Protocol
 
@@ -303,6 +303,10 @@ class ThreadSystem:
                          ) -> tuple[FloatArray, IterationMatrix]:
         """``g`` (n_dof,) and ``diag(diagonal) + a C + b K T(dq)`` on the free DOFs, in the
         storage its LU takes (band, dense or CSR: :meth:`SparsityPattern.iteration_matrix`)."""
+        if linearization is not None and linearization.convex and b > 0.0:
+            per_dof = np.zeros(len(self.free))   # the masses' term, in the blocks' units
+            per_dof[self.free] = diagonal / b
+            linearization = replace(linearization, inertia=per_dof[:self.model.n_dof])
         g, K_blocks, C_blocks = self._forces(q, v, t, load_factor, True, rate, linearization)
         return g, self._pattern.iteration_matrix(diagonal, a, C_blocks, b, K_blocks,
                                                  self._triple_transforms(dq))

@@ -250,7 +250,7 @@ class CosseratModel:
             shift = None if linearization is None else linearization.strain_shift
             f_el, K_el, C_el = internal_force_and_tangents(*args, shift)
             if linearization is not None and linearization.convex:
-                K_el = convex_blocks(K_el)
+                K_el = convex_blocks(K_el, self._inertia_share(linearization.inertia))
         else:
             f_el, K_el, C_el = internal_force(*args), None, None
         if self.end_offset is not None:  # back to the rotation nodes' frames
@@ -268,6 +268,21 @@ class CosseratModel:
         if len(body_moment):
             np.add.at(load_block, self._load_rot, -so3.hat(body_moment))
         return g, [K_el, load_block], [C_el, d_gyro]
+
+    INERTIA_SHARE = 0.5
+    """The part of the iteration matrix's masses' term that the element blocks count on before
+    they are projected (:func:`~rodnet.kernels.convex.convex_blocks`): below 1, so the rest
+    keeps the matrix positive definite."""
+
+    def _inertia_share(self, inertia: FloatArray | None) -> FloatArray | None:
+        """(E, 12) each element's share of ``inertia`` (n_dof,) (:attr:`Linearization.inertia`):
+        :attr:`INERTIA_SHARE` of it, split evenly among the elements at each DOF; None
+        without ``inertia``."""
+        if inertia is None:
+            return None
+        dofs = self.element_dofs
+        count = np.bincount(dofs.ravel(), minlength=self.n_dof)
+        return self.INERTIA_SHARE * inertia[dofs] / count[dofs]
 
     def _secant_shift(self, q: Configuration, rate: StepRate) -> FloatArray:
         """(E, 6) ``(e_0 + e_1) / 2 - e(q)`` for the midpoint ``q = q_0 o exp(dq / 2)`` of a
