@@ -108,6 +108,21 @@ def test_factor_of_ramp_table_and_window() -> None:
     np.testing.assert_allclose([at[t][2] for t in at], [0.0, 1.0, 1.0, 0.0, 0.0])     # window
 
 
+def test_loads_that_share_a_factor_take_it_once_and_the_same() -> None:
+    """A load whose table and window are the last one's repeats its factor (taken once in the
+    loops over the loads); another window, another table or a load between them does not."""
+    s = load_schedule([0.2, 0.2, 0.2, 0.0, 0.2], [None, None, None, [(0.0, 0.0), (0.1, 1.0)], None],
+                      [0.0, 0.0, 0.05, 0.05, 0.05], [None, None, None, None, 0.15])
+    np.testing.assert_array_equal(s.repeats, [False, True, False, False, False])
+    for t in (0.0, 0.04, 0.1, 0.15, 0.3):
+        alone = [factors(load_schedule([r], [tab], [a], [b]), t)[0]
+                 for r, tab, a, b in [(0.2, None, 0.0, None), (0.2, None, 0.0, None),
+                                      (0.2, None, 0.05, None), (0.0, [(0.0, 0.0), (0.1, 1.0)],
+                                                                0.05, None),
+                                      (0.2, None, 0.05, 0.15)]]
+        np.testing.assert_array_equal(factors(s, t), alone)
+
+
 @pytest.mark.parametrize("timing, key", [("start = 0.3\nstop = 0.2", "loads[0].stop"),
                                          ("start = -1.0", "loads[0].start"),
                                          ("ramp = 0.1\ntable = [[0.0, 1.0]]", "loads[0].ramp"),
@@ -369,8 +384,9 @@ def test_the_energy_less_the_load_factors_share_is_kept(tmp_path: Path, integrat
     RK45 4.9e-6, the midpoint rule 4.2e-4 (it applies the load at the step's middle), BDF2 and
     generalized-alpha 0.9 - 1.0 % (their damping), symplectic Euler 11 % (its swing, about
     omega h / 2 at its step)); and the share is the exact motion's ``-int s' f x dt`` (SciPy)
-    within five times that bound (measured 9e-7, 4.2e-3, 1.6e-2, 4.9e-3, 2.4e-2). Taken by the trapezoid rule the share erred by a quarter of the work of a
-    step that starts from rest (RK45's first steps), and the energy guard stopped the run."""
+    within five times that bound (measured 9e-7, 4.2e-3, 1.6e-2, 4.9e-3, 2.4e-2). Taken by the
+    trapezoid rule the share erred by a quarter of the work of a step that starts from rest
+    (RK45's first steps), and the energy guard stopped the run."""
     r = run(scene_from_toml(SPRING.format(integrator=integrator)), tmp_path, progress=False)
     assert r.status == "ok", r.message
     a = r.arrays

@@ -214,9 +214,11 @@ def _apply_loads(t, quat, loads, f_node, m_node):  # pragma: no cover - compiled
     """Add the dead loads at time ``t`` to the node forces and, for models with rotation
     nodes, their moments in the body frame, ``R^T m``, to the node moments."""
     with_rotations = m_node.shape[0] > 0
+    sc = loads.schedule
+    scale = 0.0
     for j in range(loads.nodes.shape[0]):
-        sc = loads.schedule
-        scale = load_factor(sc.ptr, sc.times, sc.values, sc.start, sc.stop, j, t)
+        if not sc.repeats[j]:
+            scale = load_factor(sc.ptr, sc.times, sc.values, sc.start, sc.stop, j, t)
         a = loads.nodes[j]
         if with_rotations:
             r = loads.rot_nodes[j]

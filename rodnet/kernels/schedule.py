@@ -22,13 +22,16 @@ import numpy as np
 class LoadSchedule(NamedTuple):
     """The time factors of ``L`` loads: load ``j``'s table is ``times[ptr[j]:ptr[j + 1]]`` [s]
     with ``values`` (the factors), its window ``[start[j], stop[j])`` [s] (stop ``inf``: on to
-    the end)."""
+    the end); ``repeats[j]``: load ``j``'s factor is load ``j - 1``'s (the same table and
+    window, as the weights of a scheduled gravity or the nodes of one line load), so a loop
+    over the loads takes it once."""
 
     ptr: np.ndarray
     times: np.ndarray
     values: np.ndarray
     start: np.ndarray
     stop: np.ndarray
+    repeats: np.ndarray
 
 
 def load_schedule(ramps: Sequence[float], tables: Sequence[Sequence[Sequence[float]] | None],
@@ -47,8 +50,11 @@ def load_schedule(ramps: Sequence[float], tables: Sequence[Sequence[Sequence[flo
     flat = [row for r in rows for row in r]
     times = np.array([t for t, _ in flat], dtype=np.float64)
     values = np.array([f for _, f in flat], dtype=np.float64)
-    return LoadSchedule(ptr, times, values, np.array(starts, dtype=np.float64),
-                        np.array([np.inf if s is None else s for s in stops], dtype=np.float64))
+    start = np.array(starts, dtype=np.float64)
+    stop = np.array([np.inf if s is None else s for s in stops], dtype=np.float64)
+    repeats = np.array([j > 0 and rows[j] == rows[j - 1] and start[j] == start[j - 1]
+                        and stop[j] == stop[j - 1] for j in range(len(rows))], dtype=np.bool_)
+    return LoadSchedule(ptr, times, values, start, stop, repeats)
 
 
 def schedule_of(loads: Sequence[object]) -> LoadSchedule:
@@ -118,12 +124,13 @@ def load_factor(ptr, times, values, start, stop, j, t):  # pragma: no cover - co
 
 
 @numba.njit(cache=True)
-def load_factors(ptr, times, values, start, stop, t):  # pragma: no cover - compiled
-    """(L,) factors of every load at time ``t``."""
+def load_factors(ptr, times, values, start, stop, repeats, t):  # pragma: no cover - compiled
+    """(L,) factors of every load at time ``t`` (a load that ``repeats`` the last one's factor
+    takes it over)."""
     n = start.shape[0]
     out = np.empty(n)
     for j in range(n):
-        out[j] = load_factor(ptr, times, values, start, stop, j, t)
+        out[j] = out[j - 1] if repeats[j] else load_factor(ptr, times, values, start, stop, j, t)
     return out
 
 
@@ -132,7 +139,7 @@ def factors(schedule: LoadSchedule, t: float) -> np.ndarray:
     if len(schedule.start) == 0:
         return np.zeros(0)
     return load_factors(schedule.ptr, schedule.times, schedule.values, schedule.start,
-                        schedule.stop, float(t))
+                        schedule.stop, schedule.repeats, float(t))
 
 
 def factor_slopes(schedule: LoadSchedule, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray]:
