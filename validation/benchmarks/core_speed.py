@@ -1,6 +1,7 @@
 """Benchmark: this rodnet against an older source tree on the same runs, as ratios.
 
-Three runs: the lumped reference deployment (``rodnet demo``, 3 s), the explicit rod net (the
+Four runs: the lumped reference deployment (``rodnet demo``, 3 s), the same under a gravity
+ramped over its 3 s (every node's weight a load with a time factor), the explicit rod net (the
 reference deployment with Cosserat threads, two elements per thread, pinned knots, 0.5 s) and the
 thread benchmark's 1.5 m nylon thread (20 elements, generalized-alpha at a fixed 2 ms, 1 s,
 ``thread_gravity.py``). Each version runs each case in a child process of its own (one thread,
@@ -52,6 +53,8 @@ def demo_text() -> str:
 
 CASES = {
     "lumped demo (21 x 21, 3 s)": (demo_text, ["output.vtk=false"]),
+    "lumped demo under a gravity ramp over its 3 s": (demo_text, [
+        "output.vtk=false", "simulation.gravity=[0.0, 0.0, -9.81]", "simulation.gravity_ramp=3.0"]),
     "explicit rods n = 2, pinned (21 x 21, 0.5 s)": (demo_text, [
         "output.vtk=false", "model.type=cosserat", "model.elements_per_thread=2",
         "model.knots=pinned", "simulation.integrator=explicit", "simulation.duration=0.5"]),
