@@ -139,8 +139,9 @@ def energy_guard(growth: float = 0.1, potential: bool = False,
     loads): the energy may not rise above the first frame's by more than ``growth`` of it.
     With ``potential``, for scenes where only forces with a potential do work (``forces``, for
     the message: gravity, loads without a moment; what their time factors changed of the
-    potential, ``load_factor_energy``, taken out): the energy counts their potential and may not rise above the first frame's by more than ``growth`` of the largest
-    energy in motion of the frames so far (the potential has no natural zero). An integrator
+    potential, ``load_factor_energy``, taken out): the energy counts their potential and may not
+    rise above the first frame's by more than ``growth`` of the largest energy in motion of the
+    frames so far (the potential has no natural zero). An integrator
     that is not stable on a stiff nonlinear problem (the midpoint rule with contact at a large
     fixed step, symplectic Euler on a light rope pressed on a drum) would otherwise report a
     diverging run as done."""
