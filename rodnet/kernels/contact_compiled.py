@@ -442,16 +442,35 @@ def largest_speed(v):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True)
-def select_bodies(dt, node_speed, body_velocity, body_omega, bound_radius, travelled, clearance,
-                  active, body_force, body_moment):  # pragma: no cover - compiled
+def centre_speed(body_velocity, b):  # pragma: no cover - compiled
+    """Speed of body ``b``'s centre [m/s]: how fast its bounding sphere, centred there, moves
+    (a turn about the centre leaves the sphere where it is)."""
+    return math.sqrt(body_velocity[b, 0] ** 2 + body_velocity[b, 1] ** 2
+                     + body_velocity[b, 2] ** 2)
+
+
+@numba.njit(cache=True)
+def bodies_clear(dt, node_speed, body_velocity, travelled, clearance):  # pragma: no cover
+    """(E5): whether no thread point can come within reach of any body in a step of ``dt`` [s]
+    (the test of :func:`select_bodies`, which marks nothing)."""
+    for b in range(clearance.shape[0]):
+        if travelled[b] + 2.0 * dt * (2.0 * node_speed + centre_speed(body_velocity, b)) \
+                >= clearance[b]:
+            return False
+    return True
+
+
+@numba.njit(cache=True)
+def select_bodies(dt, node_speed, body_velocity, travelled, clearance, active, body_force,
+                  body_moment):  # pragma: no cover - compiled
     """(E4): mark in ``active`` (B,) the bodies that a thread point can have come within reach of
-    since their last evaluation (``travelled + 2 dt (2 node_speed + body speed) >= clearance``),
-    restart their ``travelled`` and zero the force and moment of the others; True when any is
-    active. ``node_speed`` [m/s] is the largest node speed, ``dt`` [s] the coming step."""
+    since their last evaluation (``travelled + 2 dt (2 node_speed + centre speed) >=
+    clearance``), restart their ``travelled`` and zero the force and moment of the others; True
+    when any is active. ``node_speed`` [m/s] is the largest node speed, ``dt`` [s] the coming
+    step."""
     any_active = False
     for b in range(active.shape[0]):
-        reach = 2.0 * dt * (2.0 * node_speed + body_speed(body_velocity, body_omega,
-                                                          bound_radius, b))
+        reach = 2.0 * dt * (2.0 * node_speed + centre_speed(body_velocity, b))
         active[b] = travelled[b] + reach >= clearance[b]
         if active[b]:
             any_active = True

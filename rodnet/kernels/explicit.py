@@ -43,8 +43,8 @@ import numba
 import numpy as np
 
 from rodnet.kernels.contact_compiled import (ContactData, ContactScratch, accumulate_contact,
-                                             body_speed, forget_clearance, largest_speed,
-                                             select_bodies)
+                                             bodies_clear, centre_speed, forget_clearance,
+                                             largest_speed, select_bodies)
 from rodnet.kernels import threads
 from rodnet.kernels.cosserat_compiled import RodElements, rod_forces, scatter_forces
 from rodnet.kernels.hinge import Hinges
@@ -546,6 +546,12 @@ def _loop(with_bodies: bool):  # type: ignore[no-untyped-def]
                 t = t_seg + k * h_seg
             elif not t < t_end:
                 break
+            if with_bodies and has_bodies and base < h0 and bodies_clear(
+                    h0, node_speed, bodies.velocity, cs.travelled, cs.clearance):
+                base = h0    # (E5): no body within reach of the longer step again
+                if fixed:
+                    t_seg, k = t, 0
+                    n_seg, h_seg = _whole_steps(t, t_end, base)
             step_peak, phi = forces_of(t, x, quat, v, W, p, s, control.blocks)
             evaluations += 1
             if fixed:
@@ -557,8 +563,8 @@ def _loop(with_bodies: bool):  # type: ignore[no-untyped-def]
                 h = remaining if last else h_full
             power, total, points, depth = 0.0, 0.0, 0, 0.0
             if with_bodies and has_bodies and select_bodies(
-                    h, node_speed, bodies.velocity, bodies.omega, c.bound_radius, cs.travelled,
-                    cs.clearance, cs.active, cs.body_force, cs.body_moment):
+                    h, node_speed, bodies.velocity, cs.travelled, cs.clearance, cs.active,
+                    cs.body_force, cs.body_moment):
                 new_base = base
                 if h > control.near_dt * (1.0 + 1e-12):   # (E5): contact needs the shorter step
                     new_base = control.near_dt
@@ -599,8 +605,7 @@ def _loop(with_bodies: bool):  # type: ignore[no-untyped-def]
                                bodies.quaternion, bodies.rotation, bodies.momentum, bodies.omega,
                                s.body_work)
                 for b in range(cs.travelled.shape[0]):
-                    cs.travelled[b] += h * (2.0 * node_speed + body_speed(
-                        bodies.velocity, bodies.omega, c.bound_radius, b))
+                    cs.travelled[b] += h * (2.0 * node_speed + centre_speed(bodies.velocity, b))
             steps += 1
             if fixed:
                 k += 1
