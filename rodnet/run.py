@@ -785,11 +785,12 @@ the default step: +45 % on a 5 x 5 net)."""
 
 def _energy_rise(p: Prepared, arrays: dict[str, NDArray[Any]]) -> list[str]:
     """The warning of a dynamic run whose energy (:func:`rodnet.io.recorder.mechanical_energy`)
-    rose by more than :data:`ENERGY_RISE` although nothing but gravity and loads with a potential
-    do work on it (:func:`_worked_by`): the energy guard allows symplectic Euler's swing up to 100 %, which undamped
-    snaps reach only at the stability limit, while at the default step they already gain tens of
-    percent (and a light rope pressed on a drum by its weight grows without bound); the implicit
-    schemes' guard 10 %, below which the midpoint rule in contact can gain a few percent."""
+    rose by more than :data:`ENERGY_RISE` although nothing but forces with a potential do work
+    on it (:func:`_worked_by`): the energy guard allows symplectic Euler's swing up to 100 %,
+    which undamped snaps reach only at the stability limit, while at the default step they
+    already gain tens of percent (and a light rope pressed on a drum by its weight grows without
+    bound); the implicit schemes' guard 10 %, below which the midpoint rule in contact can gain
+    a few percent."""
     scene, sim = p.scene, p.scene.simulation
     unforced = _unforced_energy(p, arrays)
     if unforced is None:
@@ -851,10 +852,10 @@ def _energy_loss(p: Prepared, arrays: dict[str, NDArray[Any]]) -> list[str]:
     """The warning of a run whose energy fell by more than :data:`ENERGY_LOSS` under a
     :data:`DISSIPATIVE_SCHEMES` integrator where nothing in the scene dissipates (no viscosity,
     no contact damping or friction) and nothing but forces with a potential do work
-    (:func:`_worked_by`): what the
-    scheme's numerical damping took at snaps and contacts its steps do not resolve (an outside
-    check: a rod hitting a free sphere head-on lost 24 % of its energy under BDF2 at default
-    steps, its exit velocity 5.7 % low; 0.2 % at a fixed 2.5e-6 s; without a word)."""
+    (:func:`_worked_by`): what the scheme's numerical damping took at snaps and contacts its
+    steps do not resolve (an outside check: a rod hitting a free sphere head-on lost 24 % of its
+    energy under BDF2 at default steps, its exit velocity 5.7 % low; 0.2 % at a fixed 2.5e-6 s;
+    without a word)."""
     scene = p.scene
     law = None if p.system.contact is None else p.system.contact.bodies.law
     dissipates = any(m.viscosity > 0.0 for m in scene.materials) or (

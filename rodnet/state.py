@@ -137,9 +137,10 @@ class State:
     friction_work : float
         Work dissipated by friction since the start [J].
     load_factor_energy : float
-        How much the dead forces' potential ``-f(t) . x`` changed since the start by their
-        time factors alone, step by step at the steps' mean positions [J]: the frames' energy
-        less it is constant where nothing dissipates.
+        How much the dead forces' potential ``-s(t) f . x`` changed since the start by their
+        time factors ``s`` alone, ``-int s' f . x dt``, summed step by step
+        (:func:`~rodnet.kernels.schedule.factor_energy`) [J]: the frames' energy less it is
+        constant where nothing dissipates.
     applied_to_bodies : tuple of two (B, 3) float, or None
         The force [N] and moment about the centre of mass [N m] the threads applied to every
         body in the explicit loop's last step (its friction (E2) is not the regularised law

@@ -310,46 +310,19 @@ def test_generalized_alpha_under_a_sampled_sine_on_a_damped_rod(tmp_path: Path) 
     assert r.summary["metrics"]["max_tension"] < 0.3
 
 
-SPRING = """
-[simulation]
-duration = 0.3
-gravity = [0.0, 0.0, 0.0]
-integrator = "{integrator}"
-[model]
-type = "lumped"
-axial = "linear"
-[[materials]]
-name = "spring"
-density = 1000.0
-youngs_modulus = 1.0e9
-diameter = 1.0e-3
-axial_stiffness = 1000.0
-mass_per_length = 1.0e-9
-[[rods]]
-name = "s"
-material = "spring"
-points = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]
-elements = 1
-[[supports]]
-node = "s:start"
-[[masses]]
-node = "s:end"
-mass = 1.0
-[[loads]]
-node = "s:end"
-force = [20.0, 0.0, 0.0]
-table = [[0.0, 0.0], [0.05, 1.0], [0.1, 1.0], [0.1, -0.5], [0.17, 0.0]]
-[output]
-frame_interval = 0.005
-vtk = false
-"""
-"""A 1 kg mass on a linear spring of 1000 N/m (period 0.2 s), undamped, pulled along it by a
-load that ramps up, jumps from +20 to -10 N and ramps out."""
+SPRING = OSCILLATOR.format(table="table = [[0.0, 0.0], [0.05, 1.0], [0.1, 1.0], [0.1, -0.5], "
+                                  "[0.17, 0.0]]")
+SPRING_KEYS = ["simulation.duration=0.3", "materials[0].axial_stiffness=1000.0",
+               "materials[0].mass_per_length=1e-9", "materials[0].viscosity=0.0",
+               "loads[0].force=[20.0, 0.0, 0.0]", "output.frame_interval=0.005"]
+"""With :data:`SPRING_KEYS`: the 1 kg mass of :data:`OSCILLATOR` on a linear spring of 1000 N/m
+(period 0.2 s), undamped, pulled along it by a load that ramps up, jumps from +20 to -10 N and
+ramps out."""
 
 
 def _spring_reference(times: np.ndarray) -> np.ndarray:
-    """``load_factor_energy`` of the :data:`SPRING` scene at ``times`` (F,): ``-int s'(t) f x dt``
-    along the exact motion ``u'' = -(k / m) u + s(t) f / m`` of the mass at ``x = 1 + u``,
+    """``load_factor_energy`` of the :data:`SPRING` scene (:data:`SPRING_KEYS`) at ``times``
+    (F,): ``-int s'(t) f x dt`` along the exact motion ``u'' = -(k / m) u + s(t) f / m`` of the mass at ``x = 1 + u``,
     integrated with it by SciPy piece by piece between the table's rows (tight tolerances), a
     jump ``-(s(t+) - s(t-)) f x`` at the repeated row."""
     from scipy.integrate import solve_ivp
@@ -387,7 +360,8 @@ def test_the_energy_less_the_load_factors_share_is_kept(tmp_path: Path, integrat
     within five times that bound (measured 9e-7, 4.2e-3, 1.6e-2, 4.9e-3, 2.4e-2). Taken by the
     trapezoid rule the share erred by a quarter of the work of a step that starts from rest
     (RK45's first steps), and the energy guard stopped the run."""
-    r = run(scene_from_toml(SPRING.format(integrator=integrator)), tmp_path, progress=False)
+    r = run(scene_from_toml(SPRING, [*SPRING_KEYS, f"simulation.integrator={integrator}"]),
+            tmp_path, progress=False)
     assert r.status == "ok", r.message
     a = r.arrays
     motion = a["kinetic_energy"] + a["elastic_energy"]

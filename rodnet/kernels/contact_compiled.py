@@ -450,12 +450,20 @@ def centre_speed(body_velocity, b):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True)
+def _in_reach(dt, node_speed, body_velocity, travelled, clearance, b):  # pragma: no cover
+    """(E4): whether a thread point can have come within reach of body ``b`` since its last
+    evaluation, by the end of a coming step of ``dt`` [s]: ``travelled + 2 dt (2 node_speed +
+    centre speed) >= clearance``."""
+    return travelled[b] + 2.0 * dt * (2.0 * node_speed + centre_speed(body_velocity, b)) \
+        >= clearance[b]
+
+
+@numba.njit(cache=True)
 def bodies_clear(dt, node_speed, body_velocity, travelled, clearance):  # pragma: no cover
     """(E5): whether no thread point can come within reach of any body in a step of ``dt`` [s]
     (the test of :func:`select_bodies`, which marks nothing)."""
     for b in range(clearance.shape[0]):
-        if travelled[b] + 2.0 * dt * (2.0 * node_speed + centre_speed(body_velocity, b)) \
-                >= clearance[b]:
+        if _in_reach(dt, node_speed, body_velocity, travelled, clearance, b):
             return False
     return True
 
@@ -464,14 +472,12 @@ def bodies_clear(dt, node_speed, body_velocity, travelled, clearance):  # pragma
 def select_bodies(dt, node_speed, body_velocity, travelled, clearance, active, body_force,
                   body_moment):  # pragma: no cover - compiled
     """(E4): mark in ``active`` (B,) the bodies that a thread point can have come within reach of
-    since their last evaluation (``travelled + 2 dt (2 node_speed + centre speed) >=
-    clearance``), restart their ``travelled`` and zero the force and moment of the others; True
-    when any is active. ``node_speed`` [m/s] is the largest node speed, ``dt`` [s] the coming
-    step."""
+    since their last evaluation (:func:`_in_reach`), restart their ``travelled`` and zero the
+    force and moment of the others; True when any is active. ``node_speed`` [m/s] is the
+    largest node speed, ``dt`` [s] the coming step."""
     any_active = False
     for b in range(active.shape[0]):
-        reach = 2.0 * dt * (2.0 * node_speed + centre_speed(body_velocity, b))
-        active[b] = travelled[b] + reach >= clearance[b]
+        active[b] = _in_reach(dt, node_speed, body_velocity, travelled, clearance, b)
         if active[b]:
             any_active = True
             travelled[b] = 0.0

@@ -49,7 +49,7 @@ from rodnet.kernels import threads
 from rodnet.kernels.cosserat_compiled import RodElements, rod_forces, scatter_forces
 from rodnet.kernels.hinge import Hinges
 from rodnet.kernels.rigid_body import advance_bodies
-from rodnet.kernels.schedule import LoadSchedule, load_factor
+from rodnet.kernels.schedule import LoadSchedule, factor_change, load_factor
 from rodnet.kernels.segments import Segments, hinge_forces, segment_forces
 
 
@@ -136,7 +136,7 @@ class Scratch(NamedTuple):
     elements' ``force`` (E, 12) and ``monitor`` (E, 2),
     the bodies' ``body_work`` (9, 3), the contact's :class:`ContactScratch`, and
     ``load_rate`` (L, 3) [N/s], each dead load's force times its factor's slope over the call
-    (:func:`_factor_energy`; (0, 3) while no factor changes)."""
+    (:func:`~rodnet.kernels.schedule.factor_change`; (0, 3) while no factor changes)."""
 
     f_node: np.ndarray
     m_node: np.ndarray
@@ -168,8 +168,9 @@ class Marched(NamedTuple):
     [N] and element rotation ``phi_max`` [rad], the ``friction_work`` [J], and over the steps'
     start states the largest sum of contact point forces ``contact_force`` [N], number of
     contact points ``contact_count`` and depth of a thread's surface in a body
-    ``contact_depth`` [thread radii], and ``load_factor_energy`` [J] (:func:`_factor_energy`
-    over the steps; a jump of a factor at ``t`` is the caller's)."""
+    ``contact_depth`` [thread radii], and ``load_factor_energy`` [J]
+    (:func:`~rodnet.kernels.schedule.factor_change` over the steps; a jump of a factor at ``t``
+    is the caller's)."""
 
     status: int
     t: float
@@ -198,15 +199,6 @@ def _rate_products(x, v, nodes, rate):  # pragma: no cover - compiled
             gx += rate[j, k] * x[a, k]
             gv += rate[j, k] * v[a, k]
     return gx, gv
-
-
-@numba.njit(inline="always")
-def _factor_energy(h, start, end):  # pragma: no cover - compiled
-    """What the loads' time factors changed of their potential over a step of ``h`` [s],
-    ``-int s' f . x dt`` [J], from the :func:`_rate_products` at its ``start`` and ``end``:
-    ``f . x`` the cubic of its ends' values and slopes, as
-    :func:`rodnet.kernels.schedule.factor_energy` (a jump at the call's end is added there)."""
-    return -h * (0.5 * (start[0] + end[0]) - h / 12.0 * (end[1] - start[1]))
 
 
 @numba.njit(inline="always")
@@ -596,7 +588,7 @@ def _loop(with_bodies: bool):  # type: ignore[no-untyped-def]
             finite = _update(x, quat, v, W, s.f_node, s.m_node, p.nodes, p.rotations, h,
                              control.blocks)
             if rated:
-                drift += _factor_energy(h, start, _rate_products(x, v, p.loads.nodes,
+                drift += factor_change(h, start, _rate_products(x, v, p.loads.nodes,
                                                                  s.load_rate))
             if with_bodies and has_bodies:
                 node_speed = largest_speed(v)
@@ -710,7 +702,7 @@ def march_nodes(x, v, t0, t_end, n, h, problem, f_node,
             if not (math.isfinite(x[i, 0]) and math.isfinite(x[i, 1]) and math.isfinite(x[i, 2])):
                 bad += 1
         if rated:
-            drift += _factor_energy(h, start, _rate_products(x, v, loads.nodes, load_rate))
+            drift += factor_change(h, start, _rate_products(x, v, loads.nodes, load_rate))
         if bad:
             return Marched(1, t0 + (k + 1) * h, k + 1, k + 1, h, h, peak, 0.0, 0.0, 0.0, 0,
                            0.0, drift)

@@ -165,7 +165,16 @@ def factor_energy(schedule: LoadSchedule, force: np.ndarray, t0: float, t1: floa
     slope, jump = factor_slopes(schedule, t0, t1)
     if not (slope.any() or jump.any()):
         return 0.0
-    h = t1 - t0
-    mean = 0.5 * (x0 + x1) - h / 12.0 * (v1 - v0)   # (1 / h) int x dt of the cubic
-    return -float(np.einsum("l,li,li->", h * slope, force, mean)
-                  + np.einsum("l,li,li->", jump, force, x1))
+    rate = slope[:, None] * force
+    start = (float(np.einsum("li,li->", rate, x0)), float(np.einsum("li,li->", rate, v0)))
+    end = (float(np.einsum("li,li->", rate, x1)), float(np.einsum("li,li->", rate, v1)))
+    return factor_change(t1 - t0, start, end) - float(np.einsum("l,li,li->", jump, force, x1))
+
+
+@numba.njit(cache=True)
+def factor_change(h, start, end):  # pragma: no cover - compiled
+    """``-int s' f . x dt`` [J] over a step of ``h`` [s] within which every factor is linear,
+    from ``(sum s' f . x, sum s' f . v)`` [W, W/s] at the step's ``start`` and ``end``: ``f . x``
+    the cubic of its ends' values and slopes, whose mean over the step is the ends' mean less
+    ``h / 12`` times the change of the slope (:func:`factor_energy`)."""
+    return -h * (0.5 * (start[0] + end[0]) - h / 12.0 * (end[1] - start[1]))

@@ -491,19 +491,17 @@ class ThreadSystem:
     def accepted_step(self, q_start: Configuration, v_start: FloatArray, q: Configuration,
                       v: FloatArray, t_start: float, t_end: float) -> AcceptedStep:
         n3 = 3 * self.model.n_nodes
-        dt = t_end - t_start
+        velocities = v[:n3].reshape(-1, 3)
         tension = float(self.model.axial_force(q, v[:self.model.n_dof]).max(initial=0.0))
         loads = self._loads
         drift = 0.0 if not len(loads.nodes) else factor_energy(
             loads.schedule, loads.force, t_start, t_end, q_start.x[loads.nodes],
-            v_start[:n3].reshape(-1, 3)[loads.nodes], q.x[loads.nodes],
-            v[:n3].reshape(-1, 3)[loads.nodes])
+            v_start[:n3].reshape(-1, 3)[loads.nodes], q.x[loads.nodes], velocities[loads.nodes])
         if self.contact is None:
             return AcceptedStep(0.0, tension, 0.0, 0, 0.0, drift)
-        state = contact_state(self.contact.bodies, self._motion(q, v), q.x,
-                              v[:n3].reshape(-1, 3))
-        return AcceptedStep(dt * state.friction_power, tension, state.total_force, state.count,
-                            state.sunk, drift)
+        state = contact_state(self.contact.bodies, self._motion(q, v), q.x, velocities)
+        return AcceptedStep((t_end - t_start) * state.friction_power, tension, state.total_force,
+                            state.count, state.sunk, drift)
 
     @cached_property
     def _loads(self) -> Loads:
